@@ -1,0 +1,20 @@
+"""Exceptions of the capture package."""
+from depthbench.errors import DepthbenchError
+
+
+class CaptureError(DepthbenchError):
+    """Root of capture errors."""
+
+
+class SessionFormatError(CaptureError):
+    """A session folder (or a file in it) does not follow the documented format."""
+
+
+class CalibrationError(CaptureError):
+    """Intrinsics or extrinsics that cannot be right (non-positive focal length, non-rigid matrix...)."""
+
+
+class DeviceError(CaptureError):
+    """A sensor could not be opened or stopped delivering frames."""
+
+

@@ -1,0 +1,468 @@
+"""The session folder: reader, writer and validation.
+
+Layout (documented in ``data_manifests/session.md``)::
+
+    SESSION/
+      session.json                 manifest (data_manifests/schemas/session.schema.json)
+      <sensor>/frames.csv          append-only index, one row per frame of any of its streams
+      <sensor>/<stream>/<n>.png    frames: depth uint16 PNG (0 = none), colour PNG/JPEG
+      truth/                       simulated sessions only; alignment never reads it
+
+In memory depth is float32 metres with NaN for "no measurement"; timestamps are int64 µs.
+Every error names the file and the problem (:class:`SessionFormatError`).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from capture.camera import Intrinsics, Transform
+from capture.errors import CalibrationError, SessionFormatError
+from data_manifests import schema_problem
+from depthbench.errors import UnsafePathError
+from depthbench.fsutil import atomic_write_json, check_output_free, safe_join, sha256_bytes, sha256_file
+
+FORMAT = "depthbench.session"
+FORMAT_VERSION = "1.0"
+MANIFEST = "session.json"
+FRAMES_COLUMNS = ("stream", "frame_number", "device_timestamp_us", "host_timestamp_us", "file", "sha256")
+_INT_COLUMNS = ("frame_number", "device_timestamp_us", "host_timestamp_us")
+
+
+# ----------------------------------------------------------------------------- depth encoding
+def encode_depth(depth_m: np.ndarray, depth_unit_m: float) -> np.ndarray:
+    """float metres (NaN = none) to uint16 counts (0 = none); out-of-range values become 0."""
+    counts = np.rint(np.asarray(depth_m, dtype=np.float64) / depth_unit_m)
+    bad = ~np.isfinite(counts) | (counts < 1) | (counts > 65535)
+    counts[bad] = 0
+    return counts.astype(np.uint16)
+
+
+def decode_depth(counts: np.ndarray, depth_unit_m: float) -> np.ndarray:
+    """uint16 counts (0 = none) to float32 metres with NaN holes."""
+    depth = counts.astype(np.float32) * np.float32(depth_unit_m)
+    depth[counts == 0] = np.nan
+    return depth
+
+
+def _decode_image(data: bytes, path: Path) -> np.ndarray:
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) if data else None
+    if img is None:
+        raise SessionFormatError(f"{path}: not a readable image (truncated or corrupt)")
+    return img
+
+
+# ----------------------------------------------------------------------------- typed views
+@dataclass(frozen=True)
+class StreamInfo:
+    name: str
+    type: str
+    width: int
+    height: int
+    fps: float
+    encoding: str
+    intrinsics: Intrinsics
+    depth_unit_m: float | None = None
+
+
+@dataclass(frozen=True)
+class SensorInfo:
+    id: str
+    role: str
+    model: str
+    serial: str
+    streams: dict[str, StreamInfo]
+    frames_path: str
+    T_depth_color: Transform | None = None
+
+
+def _sensor_info(sensor_id: str, d: dict, where: Path) -> SensorInfo:
+    streams = {}
+    for name, s in d["streams"].items():
+        try:
+            K = Intrinsics.from_dict(s["intrinsics"])
+        except CalibrationError as exc:
+            raise SessionFormatError(f"{where}: sensors.{sensor_id}.streams.{name}: {exc}") from None
+        if (K.width, K.height) != (s["width"], s["height"]):
+            raise SessionFormatError(
+                f"{where}: sensors.{sensor_id}.streams.{name}: intrinsics are {K.width}x{K.height} "
+                f"but the stream is {s['width']}x{s['height']}")
+        streams[name] = StreamInfo(name, s["type"], s["width"], s["height"], float(s["fps"]), s["encoding"], K,
+                                   s.get("depth_unit_m"))
+    T = None
+    if "T_depth_color" in d:
+        try:
+            T = Transform.from_list(d["T_depth_color"])
+        except CalibrationError as exc:
+            raise SessionFormatError(f"{where}: sensors.{sensor_id}.T_depth_color: {exc}") from None
+    return SensorInfo(sensor_id, d["role"], d["model"], d["serial"], streams, d["frames"], T)
+
+
+# ----------------------------------------------------------------------------- manifest checks
+def validate_manifest(manifest: dict, where: Path) -> None:
+    """Check a parsed ``session.json`` against the schema and the rules a schema cannot state."""
+    if not isinstance(manifest, dict):
+        raise SessionFormatError(f"{where}: top level must be a JSON object")
+    if manifest.get("format") != FORMAT:
+        raise SessionFormatError(f"{where}: 'format' must be {FORMAT!r}, got {manifest.get('format')!r}")
+    version = str(manifest.get("format_version", ""))
+    if version.split(".")[0] != FORMAT_VERSION.split(".")[0]:
+        raise SessionFormatError(
+            f"{where}: unknown format version {version!r} (this reader understands {FORMAT_VERSION.split('.')[0]}.x)")
+    problem = schema_problem("session", manifest)
+    if problem:
+        raise SessionFormatError(f"{where}: {problem}")
+    for e in manifest.get("extrinsics", []):
+        for end in ("dst", "src"):
+            if e[end] not in manifest["sensors"]:
+                raise SessionFormatError(f"{where}: extrinsics names unknown sensor {e[end]!r}")
+        try:
+            Transform.from_list(e["T"])
+        except CalibrationError as exc:
+            raise SessionFormatError(f"{where}: extrinsics {e['dst']}<-{e['src']}: {exc}") from None
+
+
+def _read_frames_csv(path: Path, sensor: SensorInfo) -> pd.DataFrame:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise SessionFormatError(f"{path}: frames table is missing") from None
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows or tuple(rows[0]) != FRAMES_COLUMNS:
+        raise SessionFormatError(f"{path}: header must be {','.join(FRAMES_COLUMNS)}")
+    body = rows[1:]
+    for line, row in enumerate(body, start=2):
+        if len(row) != len(FRAMES_COLUMNS):
+            raise SessionFormatError(f"{path}: line {line}: expected {len(FRAMES_COLUMNS)} fields, got {len(row)}")
+    df = pd.DataFrame(body, columns=list(FRAMES_COLUMNS))
+    for col in _INT_COLUMNS:
+        try:
+            df[col] = df[col].astype(np.int64)
+        except (ValueError, OverflowError):
+            bad = next(i for i, v in enumerate(df[col]) if not _is_int(v))
+            raise SessionFormatError(f"{path}: line {bad + 2}: {col} {df[col][bad]!r} is not an integer") from None
+    unknown = sorted(set(df["stream"]) - set(sensor.streams))
+    if unknown:
+        raise SessionFormatError(f"{path}: rows name stream {unknown[0]!r}, which session.json does not declare")
+    for stream, g in df.groupby("stream", sort=False):
+        idx = g.index.to_numpy()
+        for col in _INT_COLUMNS:
+            steps = np.diff(g[col].to_numpy())
+            bad = np.flatnonzero(steps <= 0) if col == "frame_number" else np.flatnonzero(steps < 0)
+            if bad.size:
+                what = "frame numbers do not increase" if col == "frame_number" else f"{col} goes backwards"
+                raise SessionFormatError(f"{path}: line {idx[bad[0] + 1] + 2}: stream {stream}: {what}")
+    return df
+
+
+def _is_int(v: str) -> bool:
+    try:
+        int(v)
+        return True
+    except ValueError:
+        return False
+
+
+# ----------------------------------------------------------------------------- the reader
+class Session:
+    """A session folder opened for reading; checks the manifest and every frames table on open.
+
+    ``verify="full"`` also decodes every frame and checks checksum, dtype and size.
+    """
+
+    def __init__(self, root: str | os.PathLike, *, verify: str = "index") -> None:
+        self.root = Path(root)
+        self.manifest_path = self.root / MANIFEST
+        if not self.root.is_dir():
+            raise SessionFormatError(f"{self.root}: not a session folder (does not exist or is not a folder)")
+        try:
+            self.manifest = json.loads(self.manifest_path.read_text())
+        except FileNotFoundError:
+            raise SessionFormatError(f"{self.manifest_path}: missing (not a session folder)") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise SessionFormatError(f"{self.manifest_path}: not valid JSON ({exc})") from None
+        validate_manifest(self.manifest, self.manifest_path)
+        self.sensors = {sid: _sensor_info(sid, d, self.manifest_path) for sid, d in self.manifest["sensors"].items()}
+        self._frames: dict[str, pd.DataFrame] = {}
+        for sid, sensor in self.sensors.items():
+            path = self._safe(sensor.frames_path, self.manifest_path)
+            rel = sensor.frames_path
+            expected = self.manifest.get("checksums", {}).get(rel)
+            if expected is not None and path.exists() and sha256_file(path) != expected:
+                raise SessionFormatError(f"{path}: checksum mismatch with session.json")
+            df = _read_frames_csv(path, sensor)
+            for f in df["file"]:
+                self._safe(f, path)
+            self._frames[sid] = df
+        if verify == "full":
+            self.verify_frames()
+
+    # -- manifest views
+    @property
+    def name(self) -> str:
+        return self.manifest["name"]
+
+    @property
+    def time_base(self) -> str:
+        return self.manifest["time_base"]
+
+    @property
+    def effects(self) -> dict:
+        return dict(self.manifest.get("effects", {}))
+
+    @property
+    def clock_facts(self) -> dict:
+        return dict(self.manifest.get("clock_facts", {}))
+
+    def sensors_with_role(self, role: str) -> list[str]:
+        return [sid for sid, s in self.sensors.items() if s.role == role]
+
+    def declared_extrinsics(self, dst: str, src: str) -> Transform | None:
+        for e in self.manifest.get("extrinsics", []):
+            if (e["dst"], e["src"]) == (dst, src):
+                return Transform.from_list(e["T"])
+            if (e["dst"], e["src"]) == (src, dst):
+                return Transform.from_list(e["T"]).inverse()
+        return None
+
+    def stream(self, sensor: str, stream: str) -> StreamInfo:
+        try:
+            return self.sensors[sensor].streams[stream]
+        except KeyError:
+            raise SessionFormatError(f"{self.manifest_path}: no stream {sensor}/{stream}") from None
+
+    def intrinsics(self, sensor: str, stream: str = "depth") -> Intrinsics:
+        return self.stream(sensor, stream).intrinsics
+
+    # -- frames
+    def frames(self, sensor: str, stream: str | None = None) -> pd.DataFrame:
+        """The frames table of ``sensor`` (one stream's rows if given), in recorded order."""
+        df = self._frames[sensor]
+        if stream is not None:
+            self.stream(sensor, stream)
+            df = df[df["stream"] == stream].reset_index(drop=True)
+        return df
+
+    def timestamps_us(self, sensor: str, stream: str = "depth") -> np.ndarray:
+        """int64 µs timestamps of a stream on the session's ``time_base``."""
+        return self.frames(sensor, stream)[f"{self.time_base}_timestamp_us"].to_numpy(np.int64)
+
+    def _safe(self, rel: str, source: Path) -> Path:
+        try:
+            return safe_join(self.root, rel, source=source)
+        except UnsafePathError as exc:
+            raise SessionFormatError(str(exc)) from None
+
+    def _row(self, sensor: str, stream: str, frame_number: int):
+        df = self.frames(sensor, stream)
+        hit = np.flatnonzero(df["frame_number"].to_numpy() == frame_number)
+        if hit.size == 0:
+            raise SessionFormatError(f"{self.root / self.sensors[sensor].frames_path}: no frame {frame_number} in stream {stream}")
+        return df.iloc[hit[0]]
+
+    def read_image(self, sensor: str, stream: str, frame_number: int, *, verify: bool = True) -> np.ndarray:
+        """The stored image as it is on disk (uint16 counts for depth, RGB uint8 for colour)."""
+        info = self.stream(sensor, stream)
+        row = self._row(sensor, stream, frame_number)
+        path = self._safe(row["file"], self.root / self.sensors[sensor].frames_path)
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            raise SessionFormatError(f"{path}: frame file is missing") from None
+        if verify and sha256_bytes(data) != row["sha256"]:
+            raise SessionFormatError(f"{path}: checksum mismatch with {self.sensors[sensor].frames_path}")
+        img = _decode_image(data, path)
+        return self._check_image(img, info, path)
+
+    @staticmethod
+    def _check_image(img: np.ndarray, info: StreamInfo, path: Path) -> np.ndarray:
+        if img.shape[:2] != (info.height, info.width):
+            raise SessionFormatError(f"{path}: frame is {img.shape[1]}x{img.shape[0]}, stream is {info.width}x{info.height}")
+        if info.encoding == "png16":
+            if img.dtype != np.uint16 or img.ndim != 2:
+                bits = 8 * img.dtype.itemsize
+                raise SessionFormatError(f"{path}: {info.type} frame must be single-channel 16-bit, got {bits}-bit with {1 if img.ndim == 2 else img.shape[2]} channel(s)")
+            return img
+        if img.dtype != np.uint8:
+            raise SessionFormatError(f"{path}: colour frame must be 8-bit, got {img.dtype}")
+        if img.ndim == 2:
+            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+        return cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2RGB)
+
+    def read_depth(self, sensor: str, frame_number: int, *, stream: str = "depth", verify: bool = True) -> np.ndarray:
+        """Depth as float32 metres ``(H, W)`` with NaN where there is no measurement."""
+        info = self.stream(sensor, stream)
+        return decode_depth(self.read_image(sensor, stream, frame_number, verify=verify), info.depth_unit_m)
+
+    def read_color(self, sensor: str, frame_number: int, *, stream: str = "color", verify: bool = True) -> np.ndarray:
+        """Colour as RGB uint8 ``(H, W, 3)``."""
+        return self.read_image(sensor, stream, frame_number, verify=verify)
+
+    def verify_frames(self) -> int:
+        """Decode every frame and check checksum, dtype and size; returns the number checked."""
+        n = 0
+        for sid, df in self._frames.items():
+            for stream, fn in zip(df["stream"], df["frame_number"]):
+                self.read_image(sid, stream, int(fn))
+                n += 1
+        return n
+
+
+def open_session(path: str | os.PathLike, *, verify: str = "index") -> Session:
+    return Session(path, verify=verify)
+
+
+# ----------------------------------------------------------------------------- the writer
+class SessionWriter:
+    """Writes a session: frames first (temporary name, then rename), then their index row.
+
+    ``staged=True`` builds the folder under a temporary sibling name and publishes it on
+    :meth:`close` (for the simulator and importers: no partial output on error).
+    ``staged=False`` writes in place (the recorder: a crash leaves a readable session up to the
+    last complete frame; ``depthbench capture repair`` tidies the rest).
+    """
+
+    def __init__(self, root: str | os.PathLike, manifest: dict, *, force: bool = False, staged: bool = True,
+                 fsync: bool = False) -> None:
+        self.final_root = Path(root)
+        check_output_free(self.final_root, force=force, what="session folder")
+        self.force, self.staged, self.fsync = force, staged, fsync
+        self.final_root.parent.mkdir(parents=True, exist_ok=True)
+        if staged:
+            self.root = Path(tempfile.mkdtemp(prefix=f".{self.final_root.name}.", suffix=".partial",
+                                              dir=self.final_root.parent))
+        else:
+            if self.final_root.exists() and force:
+                shutil.rmtree(self.final_root)
+            self.final_root.mkdir(parents=True, exist_ok=True)
+            self.root = self.final_root
+        self.manifest = self._complete_manifest(manifest)
+        validate_manifest(self.manifest, self.root / MANIFEST)
+        self.sensors = {sid: _sensor_info(sid, d, self.root / MANIFEST) for sid, d in self.manifest["sensors"].items()}
+        self._index: dict[str, io.TextIOWrapper] = {}
+        self._last: dict[tuple[str, str], tuple[int, int, int]] = {}
+        for sid, s in self.sensors.items():
+            for stream in s.streams:
+                (self.root / sid / stream).mkdir(parents=True, exist_ok=True)
+            f = open(self.root / s.frames_path, "a", newline="")
+            if f.tell() == 0:
+                f.write(",".join(FRAMES_COLUMNS) + "\n")
+            self._index[sid] = f
+        atomic_write_json(self.root / MANIFEST, self.manifest, fsync=fsync)
+        self.closed = False
+
+    @staticmethod
+    def _complete_manifest(manifest: dict) -> dict:
+        m = json.loads(json.dumps(manifest))  # deep copy, JSON-only
+        m.setdefault("format", FORMAT)
+        m.setdefault("format_version", FORMAT_VERSION)
+        m.setdefault("created_utc", datetime.now(timezone.utc).isoformat(timespec="seconds"))
+        m.setdefault("time_base", "host")
+        m["status"] = "recording"
+        for sid, s in m.get("sensors", {}).items():
+            s.setdefault("frames", f"{sid}/frames.csv")
+        return m
+
+    def add_frame(self, sensor: str, stream: str, frame_number: int, device_timestamp_us: int,
+                  host_timestamp_us: int, image: np.ndarray) -> str:
+        """Write one frame and index it. Depth: uint16 counts or float metres (NaN = none).
+        Colour: RGB uint8. Returns the frame's path relative to the session folder."""
+        info = self.sensors[sensor].streams[stream]
+        key = (sensor, stream)
+        frame_number, dev, host = int(frame_number), int(device_timestamp_us), int(host_timestamp_us)
+        if key in self._last:
+            lf, ld, lh = self._last[key]
+            if frame_number <= lf or dev < ld or host < lh:
+                raise SessionFormatError(f"{sensor}/{stream}: frame {frame_number} does not follow frame {lf} in order")
+        data, ext = self._encode(image, info, f"{sensor}/{stream}")
+        rel = f"{sensor}/{stream}/{frame_number:08d}.{ext}"
+        path = self.root / rel
+        tmp = path.with_name(f".{path.name}.tmp")
+        with open(tmp, "wb") as f:
+            f.write(data)
+            if self.fsync:
+                f.flush()
+                os.fsync(f.fileno())
+        os.replace(tmp, path)
+        idx = self._index[sensor]
+        idx.write(f"{stream},{frame_number},{dev},{host},{rel},{sha256_bytes(data)}\n")
+        idx.flush()
+        if self.fsync:
+            os.fsync(idx.fileno())
+        self._last[key] = (frame_number, dev, host)
+        return rel
+
+    @staticmethod
+    def _encode(image: np.ndarray, info: StreamInfo, name: str) -> tuple[bytes, str]:
+        img = np.asarray(image)
+        if img.shape[:2] != (info.height, info.width):
+            raise SessionFormatError(f"{name}: frame is {img.shape[1]}x{img.shape[0]}, stream is {info.width}x{info.height}")
+        if info.encoding == "png16":
+            if img.dtype.kind == "f":
+                img = encode_depth(img, info.depth_unit_m if info.type == "depth" else 1.0)
+            if img.dtype != np.uint16 or img.ndim != 2:
+                raise SessionFormatError(f"{name}: {info.type} frames must be (H, W) uint16 or float metres, got {img.dtype} {img.shape}")
+            ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+            return buf.tobytes(), "png"
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+            raise SessionFormatError(f"{name}: colour frames must be (H, W, 3) RGB uint8, got {img.dtype} {img.shape}")
+        bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
+        if info.encoding == "jpeg":
+            ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])
+            return buf.tobytes(), "jpg"
+        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+        return buf.tobytes(), "png"
+
+    def update_manifest(self, **fields) -> None:
+        """Set top-level manifest fields (e.g. per-stream drop counts) before :meth:`close`."""
+        self.manifest.update(json.loads(json.dumps(fields)))
+        validate_manifest(self.manifest, self.root / MANIFEST)
+
+    def close(self, status: str = "complete") -> Path:
+        """Finish: checksums of the frames tables, status, and (staged) publish the folder."""
+        if self.closed:
+            return self.final_root
+        for f in self._index.values():
+            f.close()
+        self.manifest["checksums"] = {s.frames_path: sha256_file(self.root / s.frames_path) for s in self.sensors.values()}
+        self.manifest["status"] = status
+        atomic_write_json(self.root / MANIFEST, self.manifest, fsync=self.fsync)
+        if self.staged:
+            old = None
+            if self.final_root.exists():
+                old = self.final_root.with_name(f".{self.final_root.name}.old-{os.getpid()}")
+                os.replace(self.final_root, old)
+            os.replace(self.root, self.final_root)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+            self.root = self.final_root
+        self.closed = True
+        return self.final_root
+
+    def abort(self) -> None:
+        """Stop writing; a staged folder is removed, an in-place one is left as recorded so far."""
+        for f in self._index.values():
+            f.close()
+        if self.staged:
+            shutil.rmtree(self.root, ignore_errors=True)
+        self.closed = True
+
+    def __enter__(self) -> "SessionWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()

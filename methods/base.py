@@ -1,0 +1,118 @@
+"""The one interface every depth-denoising method implements, and the method registry.
+
+A method is a :class:`Denoiser` subclass with a ``name``, a ``version`` (bumped whenever its
+output for the same input would change, so cached benchmark results are recomputed) and its
+parameters. ``denoise(depth, color=None, camera=None)`` takes float32 metres with NaN holes and
+returns the same.
+"""
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from capture.camera import Intrinsics
+from methods.errors import MethodError, UnknownMethodError
+
+_REGISTRY: dict[str, type["Denoiser"]] = {}
+
+
+def register(cls: type["Denoiser"]) -> type["Denoiser"]:
+    """Class decorator: make a method available by its ``name``."""
+    if cls.name in _REGISTRY and _REGISTRY[cls.name] is not cls:
+        raise MethodError(f"method name {cls.name!r} registered twice")
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def available() -> dict[str, type["Denoiser"]]:
+    """Registered methods by name, in registration order."""
+    import methods.registry  # noqa: F401  (imports every method module so each registers itself)
+
+    return dict(_REGISTRY)
+
+
+def get(name: str, **params: Any) -> "Denoiser":
+    """An instance of method ``name`` with ``params`` overriding its defaults."""
+    methods = available()
+    if name not in methods:
+        raise UnknownMethodError(f"unknown method {name!r} (known: {', '.join(methods)})")
+    return methods[name](**params)
+
+
+def check_depth(depth: np.ndarray, *, name: str = "depth") -> np.ndarray:
+    """The shared input check: ``(H, W)`` float32 metres, NaN holes, not all holes."""
+    if not isinstance(depth, np.ndarray):
+        raise MethodError(f"{name} must be a numpy array, got {type(depth).__name__}")
+    if depth.ndim != 2:
+        raise MethodError(f"{name} must have shape (H, W), got {depth.shape}")
+    if depth.dtype != np.float32:
+        raise MethodError(f"{name} must be float32 metres with NaN holes, got {depth.dtype}")
+    if not np.isfinite(depth).any():
+        raise MethodError(f"{name} has no valid pixel (all NaN)")
+    return depth
+
+
+def check_color(color: np.ndarray | None, depth: np.ndarray) -> np.ndarray | None:
+    """Colour guide: ``(H, W, 3)`` uint8 RGB or ``(H, W)``, the depth's size."""
+    if color is None:
+        return None
+    if not isinstance(color, np.ndarray) or color.ndim not in (2, 3) or color.shape[:2] != depth.shape:
+        shape = getattr(color, "shape", None)
+        raise MethodError(f"color must have shape {depth.shape} or {depth.shape + (3,)} like the depth, got {shape}")
+    return color
+
+
+class Denoiser:
+    """Base class of every method.
+
+    Subclasses set ``name``, ``version``, ``defaults`` (parameter -> default, ``None`` meaning
+    "derive the documented default") and implement :meth:`_denoise`.
+    """
+
+    name: ClassVar[str] = ""
+    version: ClassVar[str] = "1"
+    description: ClassVar[str] = ""
+    defaults: ClassVar[dict[str, Any]] = {}
+    learned: ClassVar[bool] = False
+    uses_color: ClassVar[bool] = False
+
+    def __init__(self, **params: Any) -> None:
+        unknown = sorted(set(params) - set(self.defaults))
+        if unknown:
+            raise MethodError(f"{self.name}: unknown parameter {unknown[0]!r} (known: {', '.join(self.defaults) or 'none'})")
+        self.params = {**self.defaults, **params}
+        self.check_params(self.params)
+
+    def check_params(self, params: dict[str, Any]) -> None:
+        """Raise :class:`MethodError` for impossible parameters (negative sigmas, ...)."""
+
+    @property
+    def key(self) -> str:
+        """Identity for caching: name, version and parameters."""
+        items = ",".join(f"{k}={v}" for k, v in sorted(self.params.items()))
+        return f"{self.name}@{self.version}({items})"
+
+    def denoise(self, depth: np.ndarray, color: np.ndarray | None = None,
+                camera: Intrinsics | None = None) -> np.ndarray:
+        depth = check_depth(depth)
+        color = check_color(color, depth)
+        out = self._denoise(depth, color, camera)
+        return out.astype(np.float32, copy=False)
+
+    def _denoise(self, depth: np.ndarray, color: np.ndarray | None, camera: Intrinsics | None) -> np.ndarray:
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return self.key
+
+
+@register
+class Raw(Denoiser):
+    """The identity: the LQ depth as the sensor gave it (every leaderboard's first column)."""
+
+    name = "raw"
+    description = "identity (the sensor's depth)"
+
+    def _denoise(self, depth, color, camera):
+        return depth.copy()

@@ -257,8 +257,9 @@ class Transform:
         return p @ self.R.T + self.t
 
     def rotation_angle_deg(self) -> float:
-        c = (np.trace(self.R) - 1.0) / 2.0
-        return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+        R = self.R  # atan2 form: exact near 0 deg, where arccos of the trace loses ~1e-6 deg
+        s = 0.5 * np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+        return float(np.degrees(np.arctan2(s, (np.trace(R) - 1.0) / 2.0)))
 
     def is_close(self, other: "Transform", atol: float = 1e-9) -> bool:
         return bool(np.allclose(self.matrix, other.matrix, atol=atol))

@@ -18,3 +18,9 @@ class DeviceError(CaptureError):
     """A sensor could not be opened or stopped delivering frames."""
 
 
+class RigError(CaptureError):
+    """A rig file (TOML) that cannot be used: syntax, unknown driver, missing serial, bad stream settings."""
+
+
+class RecordingError(CaptureError):
+    """Recording stopped on a condition the user must act on (disk full, a sensor stopped delivering)."""

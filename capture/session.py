@@ -516,6 +516,14 @@ class SessionWriter:
         self.manifest.update(json.loads(json.dumps(fields)))
         validate_manifest(self.manifest, self.root / MANIFEST)
 
+    def set_stream_counts(self, sensor: str, stream: str, **counts: int) -> None:
+        """Set per-stream counters (``dropped_frames``, ``duplicate_frames``...) in the manifest."""
+        self.manifest["sensors"][sensor]["streams"][stream].update({k: int(v) for k, v in counts.items()})
+
+    def write_manifest(self) -> None:
+        """Write the manifest as it is now (atomically), e.g. periodically while recording."""
+        atomic_write_json(self.root / MANIFEST, self.manifest, fsync=self.fsync)
+
     def close(self, status: str = "complete") -> Path:
         """Finish: checksums of the frames tables, status, and (staged) publish the folder."""
         if self.closed:

@@ -41,26 +41,85 @@ def get(name: str, **params: Any) -> "Denoiser":
 
 
 def check_depth(depth: np.ndarray, *, name: str = "depth") -> np.ndarray:
-    """The shared input check: ``(H, W)`` float32 metres, NaN holes, not all holes."""
+    """The shared input check: ``(H, W)`` float32 metres, NaN holes, not all holes.
+
+    Depth must be positive where it is not NaN: ``0`` and negative values, or infinities, are
+    refused (a zero-for-hole map would silently pull every filter toward zero).
+    """
     if not isinstance(depth, np.ndarray):
         raise MethodError(f"{name} must be a numpy array, got {type(depth).__name__}")
     if depth.ndim != 2:
         raise MethodError(f"{name} must have shape (H, W), got {depth.shape}")
     if depth.dtype != np.float32:
         raise MethodError(f"{name} must be float32 metres with NaN holes, got {depth.dtype}")
-    if not np.isfinite(depth).any():
+    finite = np.isfinite(depth)
+    if not finite.any():
         raise MethodError(f"{name} has no valid pixel (all NaN)")
+    if np.isinf(depth).any():
+        raise MethodError(f"{name} has infinite values; mark missing depth with NaN")
+    if (depth[finite] <= 0).any():
+        raise MethodError(f"{name} has zero or negative values; mark missing depth with NaN, not 0")
     return depth
 
 
 def check_color(color: np.ndarray | None, depth: np.ndarray) -> np.ndarray | None:
-    """Colour guide: ``(H, W, 3)`` uint8 RGB or ``(H, W)``, the depth's size."""
+    """Colour guide: ``(H, W, 3)`` RGB or ``(H, W)``, the depth's size; uint8, uint16 or float32."""
     if color is None:
         return None
-    if not isinstance(color, np.ndarray) or color.ndim not in (2, 3) or color.shape[:2] != depth.shape:
+    if not isinstance(color, np.ndarray) or color.ndim not in (2, 3) or color.shape[:2] != depth.shape \
+            or (color.ndim == 3 and color.shape[2] != 3):
         shape = getattr(color, "shape", None)
         raise MethodError(f"color must have shape {depth.shape} or {depth.shape + (3,)} like the depth, got {shape}")
+    if color.dtype not in (np.uint8, np.uint16, np.float32):
+        raise MethodError(f"color must be uint8, uint16 or float32, got {color.dtype}")
+    if color.dtype == np.float32 and not np.isfinite(color).all():
+        raise MethodError("color has NaN or infinite values")
     return color
+
+
+def guide_planes(color: np.ndarray) -> np.ndarray:
+    """A checked colour image as a float32 guide in its own units: ``(H, W)`` or planar ``(3, H, W)``."""
+    guide = color.astype(np.float32)
+    return guide if guide.ndim == 2 else np.ascontiguousarray(np.moveaxis(guide, 2, 0))
+
+
+def _number(method: str, name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise MethodError(f"{method}: {name} must be a number, got {value!r}")
+    return float(value)
+
+
+def check_sigma(value: Any, name: str, *, method: str, unit: str, allow_inf: bool = False) -> float:
+    """A Gaussian width: a finite number > 0 (``inf`` too where ``allow_inf``: the kernel is off)."""
+    v = _number(method, name, value)
+    if np.isnan(v) or v <= 0 or (np.isinf(v) and not allow_inf):
+        raise MethodError(f"{method}: {name} must be a positive number of {unit}, got {value!r}")
+    return v
+
+
+def check_radius(value: Any, sigma_spatial: float, *, method: str) -> int:
+    """Window radius in pixels: an integer >= 1; ``None`` derives ``max(1, ceil(2 * sigma_spatial))``."""
+    if value is None:
+        return max(1, int(np.ceil(2.0 * sigma_spatial - 1e-9)))
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer, float, np.floating)) \
+            or float(value) != int(value) or not 1 <= int(value) <= 100:
+        raise MethodError(f"{method}: radius must be an integer number of pixels from 1 to 100 (or none), got {value!r}")
+    return int(value)
+
+
+def check_iterations(value: Any, *, method: str) -> int:
+    """An iteration count: an integer >= 1."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer, float, np.floating)) \
+            or float(value) != int(value) or not 1 <= int(value) <= 1000:
+        raise MethodError(f"{method}: iterations must be an integer from 1 to 1000, got {value!r}")
+    return int(value)
+
+
+def check_flag(value: Any, name: str, *, method: str) -> bool:
+    """A yes/no option: a bool (``true``/``false`` on the command line)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise MethodError(f"{method}: {name} must be true or false, got {value!r}")
+    return bool(value)
 
 
 class Denoiser:
@@ -74,6 +133,8 @@ class Denoiser:
     version: ClassVar[str] = "1"
     description: ClassVar[str] = ""
     defaults: ClassVar[dict[str, Any]] = {}
+    #: one line per parameter: meaning and unit (shown by ``depthbench methods list``)
+    param_help: ClassVar[dict[str, str]] = {}
     learned: ClassVar[bool] = False
     uses_color: ClassVar[bool] = False
 

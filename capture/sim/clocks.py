@@ -1,0 +1,143 @@
+"""Per-sensor clocks: frame rate, offsets, drift, jitter and dropped frames (pure numpy).
+
+Every quantity is an integer number of microseconds except rates. For one sensor, frame
+``k = 0, 1, ...`` (frame number ``first_frame_number + k``) is exposed when the sensor's own
+oscillator reads ``phase_us + k * period_us``, i.e. at scene time::
+
+    scene_time_us[k]  = rint((phase_us + k * period_us) / device_rate)
+    device_timestamp  = device_offset_us + rint(device_rate * scene_time_us)
+    host_timestamp    = host_offset_us + rint(host_rate * scene_time_us) + host_jitter_us[k]
+
+with ``period_us = 1e6 / fps``, ``device_rate = 1 + device_drift_ppm * 1e-6``, ``host_rate =
+1 + host_drift_ppm * 1e-6`` and ``host_jitter_us[k]`` uniform in ``[-host_jitter_bound_us,
++host_jitter_bound_us]`` (recorded per frame in ``truth/<sensor>/frames.csv``). Frames are
+dropped independently with probability ``drop_rate``; a dropped frame keeps its number, so
+the frame numbers that remain have gaps.
+
+Host timestamps are what alignment uses (``time_base: "host"``): the *host* clock of a sensor
+is the clock of the computer that received its frames. The reference sensor (HQ, or ``view0``
+without one) has ``host_rate = 1``; another sensor X is offset by ``host_offset_us[X] -
+host_offset_us[ref]`` and drifts by its ``host_drift_ppm``, so an instant stamped ``t`` by the
+reference is stamped ``t + Delta(t)`` by X with ``Delta(t) = a + b (t - t0)``, ``a = time_shift_us``,
+``b = host_drift_ppm * 1e-6``, ``t0 = host_offset_us[ref]`` (the reference's host stamp of scene
+time 0). Device timestamps are in each device's own domain (offset and crystal drift of its own).
+
+Example:
+    >>> c = Clock(fps=30.0, first_frame_number=1, phase_us=0.0, device_offset_us=0, device_drift_ppm=0.0,
+    ...           host_offset_us=1000, host_drift_ppm=0.0, host_jitter_bound_us=0, drop_rate=0.0)
+    >>> s = frame_schedule(c, seconds=0.1, rng=np.random.default_rng(0))
+    >>> s.frame_number.tolist(), s.scene_time_us.tolist(), s.host_timestamp_us.tolist()
+    ([1, 2, 3], [0, 33333, 66667], [1000, 34333, 67667])
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+#: Default bound of the host arrival jitter (uniform, microseconds): small against a 33 ms
+#: period, so nearest-timestamp association (SSDD eq. 28) stays unambiguous.
+DEFAULT_JITTER_US = 1000
+#: Default range of the drawn time shift, +-60 ms as in SSDD.
+DEFAULT_MAX_SHIFT_US = 60_000
+
+
+@dataclass(frozen=True)
+class Clock:
+    """One sensor's clock model (see the module docstring for the formulas)."""
+
+    fps: float
+    first_frame_number: int
+    phase_us: float
+    device_offset_us: int
+    device_drift_ppm: float
+    host_offset_us: int
+    host_drift_ppm: float
+    host_jitter_bound_us: int
+    drop_rate: float
+
+    @property
+    def period_us(self) -> float:
+        return 1e6 / self.fps
+
+    @property
+    def device_rate(self) -> float:
+        return 1.0 + self.device_drift_ppm * 1e-6
+
+    @property
+    def host_rate(self) -> float:
+        return 1.0 + self.host_drift_ppm * 1e-6
+
+    def scene_time_us(self, k: np.ndarray) -> np.ndarray:
+        """Scene time (µs, int64) of the frames with index ``k`` (0 = first frame)."""
+        return np.rint((self.phase_us + np.asarray(k, np.float64) * self.period_us) / self.device_rate).astype(np.int64)
+
+    def device_timestamp_us(self, scene_time_us: np.ndarray) -> np.ndarray:
+        return self.device_offset_us + np.rint(self.device_rate * np.asarray(scene_time_us, np.float64)).astype(np.int64)
+
+    def host_timestamp_us(self, scene_time_us: np.ndarray, jitter_us: np.ndarray | int = 0) -> np.ndarray:
+        return (self.host_offset_us + np.rint(self.host_rate * np.asarray(scene_time_us, np.float64)).astype(np.int64)
+                + np.asarray(jitter_us, np.int64))
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["period_us"] = self.period_us
+        return d
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """The frames one sensor delivers (dropped ones removed), all arrays ``(N,)`` int64."""
+
+    frame_number: np.ndarray
+    scene_time_us: np.ndarray
+    device_timestamp_us: np.ndarray
+    host_timestamp_us: np.ndarray
+    host_jitter_us: np.ndarray
+    dropped_frame_numbers: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.frame_number)
+
+
+def frame_schedule(clock: Clock, *, seconds: float, rng: np.random.Generator) -> Schedule:
+    """Every frame whose scene time lies in ``[0, seconds)``; drops and jitter drawn from ``rng``."""
+    n = int(np.ceil(seconds * 1e6 * clock.device_rate / clock.period_us)) + 2
+    k = np.arange(n)
+    t = clock.scene_time_us(k)
+    keep = t < round(seconds * 1e6)
+    k, t = k[keep], t[keep]
+    drop = rng.random(len(k)) < clock.drop_rate
+    if drop.all() and len(drop):
+        drop[0] = False
+    jitter = rng.integers(-clock.host_jitter_bound_us, clock.host_jitter_bound_us + 1, len(k)).astype(np.int64)
+    fn = clock.first_frame_number + k.astype(np.int64)
+    kept = ~drop
+    return Schedule(fn[kept], t[kept], clock.device_timestamp_us(t[kept]),
+                    clock.host_timestamp_us(t[kept], jitter[kept]), jitter[kept], fn[drop])
+
+
+def draw_clocks(sensors: dict[str, float], *, reference: str, target: str | None, rng: np.random.Generator,
+                time_shift_us: int | None = None, drift_ppm: float = 0.0, drop_rate: float = 0.0,
+                jitter_bound_us: int = DEFAULT_JITTER_US) -> dict[str, Clock]:
+    """Draw a clock for each sensor (``{sensor: fps}``).
+
+    ``reference`` gets host offset ``t0`` (an epoch-like time) and no host drift; ``target`` (the LQ
+    sensor the effects act on) is shifted by ``time_shift_us`` (drawn within +-60 ms if None) and
+    drifts by ``drift_ppm``; other sensors get their own shift within +-60 ms.
+    """
+    t0 = 1_700_000_000_000_000 + int(rng.integers(0, 365 * 86_400 * 10**6))
+    clocks = {}
+    for sid, fps in sensors.items():
+        shift = int(rng.integers(-DEFAULT_MAX_SHIFT_US, DEFAULT_MAX_SHIFT_US + 1))  # always drawn: same stream
+        if sid == reference:
+            shift = 0
+        elif sid == target and time_shift_us is not None:
+            shift = int(time_shift_us)
+        clocks[sid] = Clock(
+            fps=float(fps), first_frame_number=int(rng.integers(1, 1000)),
+            phase_us=float(rng.uniform(0, 1e6 / fps)), device_offset_us=int(rng.integers(10**6, 10**10)),
+            device_drift_ppm=float(np.round(rng.uniform(-20, 20), 3)), host_offset_us=t0 + shift,
+            host_drift_ppm=float(drift_ppm) if sid == target else 0.0, host_jitter_bound_us=int(jitter_bound_us),
+            drop_rate=float(drop_rate))
+    return clocks

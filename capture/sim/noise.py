@@ -1,0 +1,215 @@
+"""Depth noise from the sensors' physics (pure numpy + OpenCV filters, no I/O).
+
+Stereo LQ (RealSense D415-like), in disparity space:
+
+* disparity ``d = f * B / z`` (px; ``f`` focal length in px, ``B`` baseline in m);
+* matching noise: ``d + subpixel_px * n`` with ``n`` a unit-variance Gaussian field, spatially
+  correlated by a Gaussian of ``correlation_px`` (the matcher's window);
+* quantisation of the disparity to ``disparity_step_px`` (1/32 px, the D415's sub-pixel step);
+* so ``sigma_z ~= z**2 / (f * B) * sqrt(subpixel_px**2 + disparity_step_px**2 / 12)``: the
+  quadratic growth with depth (the quantisation adds 0.6 % at 0.08 px and 1/32 px);
+* no measurement where the right camera cannot see the point (occlusion shadows, and the band
+  on the left that is outside the right camera's view), near depth edges (disparity range in a
+  3x3 window over ``edge_threshold_px``, with probability ``edge_invalid_prob``), on dark
+  (luminance < ``min_luminance``) or low-texture (local standard deviation of luminance in a
+  ``texture_window_px`` window < ``min_contrast``) surfaces, outside ``[min_depth_m,
+  max_depth_m]``, and a random ``random_invalid_fraction`` of pixels.
+
+Time-of-flight HQ (Kinect v2 / Azure-like), in depth:
+
+* ``sigma(z) = sigma0_m + sigma_slope * max(z - z0_m, 0)`` (0.5 mm + 1 mm per metre beyond
+  0.5 m, i.e. 0.1 % of the distance beyond 0.5 m), white;
+* flying (mixed) pixels: where the true depth jumps by more than ``flying_jump_m`` inside a
+  3x3 window, a ``flying_fraction`` of the pixels take a random mix ``w z_near + (1-w) z_far``;
+* no measurement where the returned amplitude ``albedo / z**2`` is below ``min_amplitude``
+  (dark surfaces, far away) or outside ``[min_depth_m, max_depth_m]``.
+
+Both models list their parameters in ``to_dict()``, which the simulator writes to
+``session.json`` (``sensors.X.noise``) and ``truth/truth.json``.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class StereoNoise:
+    """Active-stereo depth noise; see the module docstring for the model."""
+
+    baseline_m: float = 0.055
+    subpixel_px: float = 0.08
+    disparity_step_px: float = 1.0 / 32.0
+    correlation_px: float = 1.0
+    edge_threshold_px: float = 1.0
+    edge_invalid_prob: float = 0.7
+    texture_window_px: int = 7
+    min_contrast: float = 0.012
+    min_luminance: float = 0.06
+    random_invalid_fraction: float = 0.002
+    min_depth_m: float = 0.3
+    max_depth_m: float = 10.0
+    model: str = "stereo"
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["sigma_z"] = "z**2 * subpixel_px / (f_px * baseline_m), applied in disparity, quantised to disparity_step_px"
+        return d
+
+    def sigma_z(self, z_m: np.ndarray | float, focal_px: float, *, with_quantisation: bool = True):
+        """Predicted standard deviation of depth (m) at depth ``z_m`` (first order).
+
+        >>> round(float(StereoNoise().sigma_z(1.0, 600.0, with_quantisation=False)) * 1000, 3)
+        2.424
+        """
+        s = self.subpixel_px if not with_quantisation else np.hypot(self.subpixel_px, self.disparity_step_px / np.sqrt(12))
+        return np.asarray(z_m) ** 2 * s / (focal_px * self.baseline_m)
+
+
+@dataclass(frozen=True)
+class TofNoise:
+    """Time-of-flight depth noise; see the module docstring for the model."""
+
+    sigma0_m: float = 0.0005
+    sigma_slope: float = 0.001
+    z0_m: float = 0.5
+    flying_jump_m: float = 0.05
+    flying_fraction: float = 0.5
+    min_amplitude: float = 0.006
+    min_depth_m: float = 0.5
+    max_depth_m: float = 8.0
+    model: str = "tof"
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["sigma_z"] = "sigma0_m + sigma_slope * max(z - z0_m, 0)"
+        return d
+
+    def sigma_z(self, z_m):
+        """Standard deviation of depth (m) at depth ``z_m``.
+
+        >>> round(float(TofNoise().sigma_z(2.0)) * 1000, 3)
+        2.0
+        """
+        return self.sigma0_m + self.sigma_slope * np.maximum(np.asarray(z_m, dtype=np.float64) - self.z0_m, 0.0)
+
+
+# ----------------------------------------------------------------------------- helpers
+def correlated_normal(shape: tuple[int, int], sigma_px: float, rng: np.random.Generator) -> np.ndarray:
+    """A stationary Gaussian field of unit variance, correlated by a Gaussian of ``sigma_px``.
+
+    >>> f = correlated_normal((200, 300), 1.5, np.random.default_rng(0))
+    >>> f.shape, abs(float(f.std()) - 1.0) < 0.05
+    ((200, 300), True)
+    """
+    if sigma_px <= 0:
+        return rng.standard_normal(shape, dtype=np.float32)
+    r = int(np.ceil(3 * sigma_px))
+    k = cv2.getGaussianKernel(2 * r + 1, sigma_px).astype(np.float64)
+    gain = float((k ** 2).sum())  # std of the separable blur of unit white noise
+    white = rng.standard_normal((shape[0] + 2 * r, shape[1] + 2 * r), dtype=np.float32)
+    field = cv2.sepFilter2D(white, -1, k, k, borderType=cv2.BORDER_ISOLATED)
+    return field[r:-r, r:-r] / np.float32(gain)
+
+
+def occluded_in_right(x_right_px: np.ndarray) -> np.ndarray:
+    """Left-image pixels the right camera of a rectified pair cannot see (scanline test).
+
+    ``x_right_px`` ``(H, W)`` is the column at which each left pixel's surface point appears in
+    the right image (``u - d`` for an undistorted pair; NaN where there is no surface). A point is
+    hidden when a pixel to its right in the left image lands at or left of it in the right image:
+    the occluder lies on the segment between the point and the right camera, and that segment
+    projects onto the same row to the right. This equals casting rays from the right camera,
+    except for occluders outside the left image.
+
+    >>> occluded_in_right(np.array([[0.0, 1.0, 2.0, 3.0, 1.5, 2.5]])).tolist()
+    [[False, False, True, True, False, False]]
+    """
+    r = np.where(np.isfinite(x_right_px), x_right_px, np.inf)
+    m = np.minimum.accumulate(r[:, ::-1], axis=1)[:, ::-1]
+    after = np.concatenate([m[:, 1:], np.full((r.shape[0], 1), np.inf)], axis=1)
+    return np.isfinite(r) & (after < r - 1e-3)
+
+
+def _local_range(img: np.ndarray) -> np.ndarray:
+    k = np.ones((3, 3), np.uint8)
+    return cv2.dilate(img, k) - cv2.erode(img, k)
+
+
+def _local_std(img: np.ndarray, window: int) -> np.ndarray:
+    mean = cv2.blur(img, (window, window))
+    mean2 = cv2.blur(img * img, (window, window))
+    return np.sqrt(np.maximum(mean2 - mean * mean, 0.0))
+
+
+# ----------------------------------------------------------------------------- stereo
+@dataclass
+class NoisyDepth:
+    """A noisy depth image ``(H, W)`` float32 metres (NaN = none) and why pixels are missing."""
+
+    depth: np.ndarray
+    invalid: dict[str, np.ndarray]
+
+
+def stereo_depth(z_true: np.ndarray, ray_x: np.ndarray, luminance: np.ndarray, *, noise: StereoNoise,
+                 fx: float, cx: float, rng: np.random.Generator) -> NoisyDepth:
+    """Simulate the stereo depth of the left (depth-origin) camera.
+
+    Args:
+        z_true: ``(H, W)`` float32 true z-depth in metres, NaN where no surface.
+        ray_x: ``(H, W)`` x/z of each pixel's viewing ray in the camera frame (undistorted).
+        luminance: ``(H, W)`` float32 shaded luminance in [0, 1] seen by the left camera.
+        fx, cx: focal length and principal point (px) of the depth camera.
+    Returns:
+        :class:`NoisyDepth` with depth in metres and masks ``occlusion``, ``edge``,
+        ``texture``, ``range``, ``random``.
+    """
+    fB = fx * noise.baseline_m
+    valid = np.isfinite(z_true) & (z_true > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disp = np.where(valid, fB / z_true, 0.0).astype(np.float32)
+    x_right = np.where(valid, fx * (ray_x - noise.baseline_m / z_true) + cx, np.nan)
+    occl = occluded_in_right(x_right) | (valid & (x_right < -0.5))
+    edge = (_local_range(disp) > noise.edge_threshold_px) & (rng.random(z_true.shape) < noise.edge_invalid_prob)
+    lum = luminance.astype(np.float32)
+    texture = (lum < noise.min_luminance) | (_local_std(lum, noise.texture_window_px) < noise.min_contrast)
+    rand = rng.random(z_true.shape) < noise.random_invalid_fraction
+    d = disp + np.float32(noise.subpixel_px) * correlated_normal(z_true.shape, noise.correlation_px, rng)
+    step = noise.disparity_step_px
+    d = np.round(d / step) * step if step > 0 else d
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = (fB / d).astype(np.float32)
+    rng_bad = valid & ~((d > 0) & (z >= noise.min_depth_m) & (z <= noise.max_depth_m))
+    bad = ~valid | occl | edge | texture | rand | rng_bad
+    z[bad] = np.nan
+    return NoisyDepth(z, {"occlusion": occl, "edge": edge & valid, "texture": texture & valid, "range": rng_bad,
+                          "random": rand & valid})
+
+
+# ----------------------------------------------------------------------------- time of flight
+def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: np.random.Generator) -> NoisyDepth:
+    """Simulate a time-of-flight depth image.
+
+    Args:
+        z_true: ``(H, W)`` float32 true z-depth in metres, NaN where no surface.
+        albedo: ``(H, W)`` float32 surface reflectance (luminance of the albedo) in [0, 1].
+    Returns:
+        :class:`NoisyDepth` with masks ``flying``, ``dark``, ``range``.
+    """
+    valid = np.isfinite(z_true)
+    far = np.float32(noise.max_depth_m * 2)
+    zf = np.where(valid, z_true, far).astype(np.float32)
+    k = np.ones((3, 3), np.uint8)
+    z_near, z_far = cv2.erode(zf, k), cv2.dilate(zf, k)
+    flying = valid & (z_far - z_near > noise.flying_jump_m) & (rng.random(z_true.shape) < noise.flying_fraction)
+    w = rng.random(z_true.shape, dtype=np.float32)
+    z_mixed = np.where(flying, w * z_near + (1 - w) * np.minimum(z_far, far / 2), zf)
+    sigma = noise.sigma_z(z_mixed).astype(np.float32)
+    z = z_mixed + sigma * rng.standard_normal(z_true.shape, dtype=np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dark = valid & (albedo / np.square(zf) < noise.min_amplitude)
+    out_of_range = valid & ((z < noise.min_depth_m) | (z > noise.max_depth_m))
+    z[~valid | dark | out_of_range] = np.nan
+    return NoisyDepth(z.astype(np.float32), {"flying": flying & ~dark, "dark": dark, "range": out_of_range})

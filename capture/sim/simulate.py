@@ -1,0 +1,173 @@
+"""``simulate()``: write a simulated RGB-D session with ground truth.
+
+The library function behind ``depthbench capture simulate``. It plans the run (rig, scene,
+clocks, which frames exist), then renders every frame of every sensor in scene-time order,
+writing them through :class:`capture.session.SessionWriter` (staged: an error leaves nothing)
+and the noise-free depth to ``truth/``.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from capture.camera import Intrinsics
+from capture.session import SessionWriter
+from capture.sim.clocks import DEFAULT_MAX_SHIFT_US, draw_clocks, frame_schedule
+from capture.sim.effects import parse_effects
+from capture.sim.errors import SimulationError
+from capture.sim.output import Plan, TruthWriter, session_manifest
+from capture.sim.render import Renderer, camera_rays
+from capture.sim.rigs import Rig, build_rig
+from capture.sim.scene import build_scene
+from capture.sim.sensors import SensorCameras, Timings, render_frame
+
+COLOR_ENCODINGS = ("png", "jpeg")
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """What :func:`simulate` wrote.
+
+    ``frames``/``dropped``: frames written / dropped per sensor; ``time_shift_us``: the true
+    Delta between the target (LQ) and reference (HQ) host clocks; ``timings_s``: seconds per
+    stage (``raycast+texture``, ``noise``, ``encode+write``, ``truth``, ``scene``).
+    """
+
+    root: Path
+    rig: str
+    scene: str
+    seed: int
+    seconds: float
+    frames: dict[str, int]
+    dropped: dict[str, int]
+    time_shift_us: int
+    effects: dict[str, float]
+    declared: bool
+    elapsed_s: float
+    timings_s: dict[str, float]
+
+    @property
+    def scene_frames_per_s(self) -> float:
+        """Frames of scene time (1/30 s at 30 fps) simulated per second of wall time."""
+        return self.seconds * 30.0 / self.elapsed_s if self.elapsed_s > 0 else float("inf")
+
+
+def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float = 5.0, seed: int = 0,
+             effects=None, undeclared: bool = False, force: bool = False, time_shift_us: int | None = None,
+             static: bool = False, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: float = 30.0,
+             color_encoding: str = "png", progress: bool = True, name: str | None = None) -> SimulationResult:
+    """Simulate rig ``rig`` filming scene ``scene`` for ``seconds`` and write a session to ``out``.
+
+    Args:
+        out: session folder to create (refused if it exists and not ``force``).
+        rig: ``lq-hq``, ``multiview4`` or ``multiview4-hq`` (:mod:`capture.sim.rigs`).
+        scene: ``people``, ``balloons`` or ``planes`` (:mod:`capture.sim.scene`).
+        seconds: scene time to simulate (s). seed: makes the run deterministic (same bytes).
+        effects: ``{"depth_scale": 1.02}`` or ``["depth_scale=1.02"]`` (:mod:`capture.sim.effects`).
+        undeclared: write the effects to ``truth/`` only, not to ``session.json``.
+        time_shift_us: the true Delta (µs) of the target (LQ) host clock against the reference (HQ);
+            drawn uniformly within +-60 ms when None.
+        static: freeze the scene (the time shift is then unobservable).
+        scale: multiply every image size (e.g. 0.25 for tiny tests). lq_fps, hq_fps: frame rates.
+        color_encoding: ``png`` or ``jpeg`` for the colour streams.
+    Returns:
+        :class:`SimulationResult`. Read the truth with :func:`capture.truth.read_truth`.
+    """
+    started = time.perf_counter()
+    plan = make_plan(rig=rig, scene=scene, seconds=seconds, seed=seed, effects=effects, undeclared=undeclared,
+                     time_shift_us=time_shift_us, static=static, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps,
+                     color_encoding=color_encoding, name=name)
+    writer = SessionWriter(out, session_manifest(plan), force=force, staged=True)
+    timings = Timings()
+    try:
+        truth = TruthWriter(writer.root, plan)
+        _render_all(plan, writer, truth, timings, progress=progress)
+        with timings("truth"):
+            truth.close()
+        root = writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    return SimulationResult(
+        Path(root), plan.rig.name, plan.scene_name, plan.seed, plan.seconds,
+        {sid: len(s) for sid, s in plan.schedules.items()},
+        {sid: len(s.dropped_frame_numbers) for sid, s in plan.schedules.items()},
+        plan.time_shift_us, dict(plan.effects), plan.declared, time.perf_counter() - started, dict(timings))
+
+
+# ----------------------------------------------------------------------------- planning
+def make_plan(*, rig: str, scene: str, seconds: float, seed: int, effects, undeclared: bool,
+              time_shift_us: int | None, static: bool, scale: float, lq_fps: float, hq_fps: float,
+              color_encoding: str = "png", name: str | None = None) -> Plan:
+    """Check the options and decide everything but the pixels: rig, clocks, which frames exist."""
+    effects = parse_effects(effects)
+    _check_options(seconds=seconds, seed=seed, time_shift_us=time_shift_us, color_encoding=color_encoding)
+    built = _apply_lens_effect(build_rig(rig, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps), effects)
+    build_scene(scene, seed=seed)  # validates the name early, before anything is written
+    rng = np.random.default_rng([int(seed), 1])
+    clocks = draw_clocks({s.id: s.fps for s in built.sensors}, reference=built.reference, target=built.target,
+                         rng=rng, time_shift_us=time_shift_us, drift_ppm=effects.get("clock_drift_ppm", 0.0),
+                         drop_rate=effects.get("frame_drop_rate", 0.0))
+    schedules = {sid: frame_schedule(c, seconds=seconds, rng=np.random.default_rng([int(seed), 2, i]))
+                 for i, (sid, c) in enumerate(clocks.items())}
+    return Plan(built, scene, int(seed), float(seconds), bool(static), float(scale), effects, not undeclared,
+                clocks, schedules, color_encoding, name or f"sim-{rig}-{scene}-seed{seed}")
+
+
+def _check_options(*, seconds: float, seed: int, time_shift_us, color_encoding: str) -> None:
+    if not (isinstance(seconds, (int, float)) and 0 < seconds <= 600):
+        raise SimulationError(f"--seconds: {seconds} must be within (0, 600]")
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SimulationError(f"--seed: {seed} must be a non-negative integer")
+    if time_shift_us is not None and abs(int(time_shift_us)) > 10 * DEFAULT_MAX_SHIFT_US:
+        raise SimulationError(f"--time-shift-ms: {time_shift_us / 1000:g} ms is beyond +-600 ms")
+    if color_encoding not in COLOR_ENCODINGS:
+        raise SimulationError(f"--color-format: {color_encoding!r} is not one of {', '.join(COLOR_ENCODINGS)}")
+
+
+def _apply_lens_effect(rig: Rig, effects: dict[str, float]) -> Rig:
+    """Render the target camera through radial distortion k1 (depth and co-registered colour)."""
+    k1 = effects.get("distortion_k1", 0.0)
+    if not k1:
+        return rig
+    spec = rig.sensor(rig.target)
+    d = spec.depth
+    K = Intrinsics(d.width, d.height, d.fx, d.fy, d.cx, d.cy, "opencv", (k1, 0.0, 0.0, 0.0, 0.0))
+    return rig.with_sensor(replace(spec, depth=K, color=K))
+
+
+# ----------------------------------------------------------------------------- rendering
+def _events(plan: Plan) -> list[tuple[int, int, str, int]]:
+    """(scene time µs, sensor order, sensor, index in its schedule) for every frame, in time order."""
+    ev = [(int(t), order, s.id, i) for order, s in enumerate(plan.rig.sensors)
+          for i, t in enumerate(plan.schedules[s.id].scene_time_us)]
+    return sorted(ev)
+
+
+def _render_all(plan: Plan, writer: SessionWriter, truth: TruthWriter, timings: Timings, *, progress: bool) -> None:
+    with timings("scene"):
+        scene = build_scene(plan.scene_name, seed=plan.seed, static=plan.static)
+        renderer = Renderer(scene)
+        cams = {s.id: SensorCameras(camera_rays(s.depth, s.T_world_depth),
+                                    None if s.color_is_depth else camera_rays(s.color, s.T_world_color))
+                for s in plan.rig.sensors}
+    events = _events(plan)
+    for t_us, order, sid, i in tqdm(events, desc=f"simulate {plan.rig.name}", unit="frame", file=sys.stderr,
+                                    disable=not progress, leave=False):
+        spec = plan.rig.sensor(sid)
+        sched = plan.schedules[sid]
+        fn = int(sched.frame_number[i])
+        scale = plan.effects.get("depth_scale", 1.0) if sid == plan.rig.target else 1.0
+        rng = np.random.default_rng([plan.seed, 3, order, fn])
+        frame = render_frame(spec, cams[sid], renderer, t_us * 1e-6, rng=rng, depth_scale=scale, timings=timings)
+        dev, host = int(sched.device_timestamp_us[i]), int(sched.host_timestamp_us[i])
+        with timings("encode+write"):
+            writer.add_frame(sid, "depth", fn, dev, host, frame.depth)
+            writer.add_frame(sid, "color", fn, dev, host, frame.color)
+        with timings("truth"):
+            truth.add(sid, i, frame.truth_depth)

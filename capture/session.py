@@ -379,31 +379,39 @@ class SessionWriter:
         self.final_root = Path(root)
         check_output_free(self.final_root, force=force, what="session folder")
         self.force, self.staged, self.fsync = force, staged, fsync
-        self.final_root.parent.mkdir(parents=True, exist_ok=True)
-        if staged:
-            self.root = Path(tempfile.mkdtemp(prefix=f".{self.final_root.name}.", suffix=".partial",
-                                              dir=self.final_root.parent))
-        else:
-            if self.final_root.exists() and force:
-                shutil.rmtree(self.final_root)
-            self.final_root.mkdir(parents=True, exist_ok=True)
-            self.root = self.final_root
         self.manifest = self._complete_manifest(manifest)
-        validate_manifest(self.manifest, self.root / MANIFEST)
-        self.sensors = {sid: _sensor_info(sid, d, self.root / MANIFEST) for sid, d in self.manifest["sensors"].items()}
+        validate_manifest(self.manifest, self.final_root / MANIFEST)
+        self.sensors = {sid: _sensor_info(sid, d, self.final_root / MANIFEST)
+                        for sid, d in self.manifest["sensors"].items()}
         self._index: dict[str, int] = {}  # sensor -> O_APPEND file descriptor of its frames.csv
         self._last: dict[tuple[str, str], tuple[int, int, int]] = {}
         self._lock = threading.Lock()
-        for sid, s in self.sensors.items():
-            for stream in s.streams:
-                (self.root / sid / stream).mkdir(parents=True, exist_ok=True)
-            index_path = self._safe_output(s.frames_path)
-            index_path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(index_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
-            if os.fstat(fd).st_size == 0:
-                os.write(fd, (",".join(FRAMES_COLUMNS) + "\n").encode())
-            self._index[sid] = fd
-        atomic_write_json(self.root / MANIFEST, self.manifest, fsync=fsync)
+        self.final_root.parent.mkdir(parents=True, exist_ok=True)
+        # The skeleton (folders, frames.csv headers, session.json) is built under a temporary
+        # sibling name, so the folder appears complete or not at all. ``staged`` keeps it there
+        # until close(); otherwise it is published at once and frames are written in place.
+        self.root = Path(tempfile.mkdtemp(prefix=f".{self.final_root.name}.", suffix=".partial",
+                                          dir=self.final_root.parent))
+        try:
+            for sid, s in self.sensors.items():
+                for stream in s.streams:
+                    (self.root / sid / stream).mkdir(parents=True, exist_ok=True)
+                index_path = self._safe_output(s.frames_path)
+                index_path.parent.mkdir(parents=True, exist_ok=True)
+                fd = os.open(index_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+                self._index[sid] = fd
+                if os.fstat(fd).st_size == 0:
+                    os.write(fd, (",".join(FRAMES_COLUMNS) + "\n").encode())
+            atomic_write_json(self.root / MANIFEST, self.manifest, fsync=fsync)
+            if not staged:
+                if self.final_root.exists():  # only reached with force, or when it is an empty folder
+                    shutil.rmtree(self.final_root)
+                os.replace(self.root, self.final_root)
+                self.root = self.final_root
+        except BaseException:
+            self._close_index()
+            shutil.rmtree(self.root, ignore_errors=True)
+            raise
         self.closed = False
 
     @staticmethod

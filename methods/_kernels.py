@@ -29,11 +29,17 @@ Implementation (numba, ``parallel=True``, ``fastmath=False``):
 from __future__ import annotations
 
 import math
+import os
 
+import numba
 import numpy as np
 from llvmlite import ir
 from numba import njit, prange, types
 from numba.extending import intrinsic
+
+# OpenMP first: probing TBB first prints a warning where an old libtbb is on the path (open3d ships one)
+if "NUMBA_THREADING_LAYER" not in os.environ and "NUMBA_THREADING_LAYER_PRIORITY" not in os.environ:
+    numba.config.THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
 
 #: exponents above this are treated as weight 0 (exp(-40) = 4.2e-18)
 T_MAX = 40.0

@@ -58,34 +58,36 @@ class _Event:
     device_timestamp_us: int
 
 
+class _Group:
+    """Replays of one source session opened together share one start instant."""
+
+    def __init__(self, t_min_us: int) -> None:
+        self.t_min_us = t_min_us
+        self.epoch_us: int | None = None
+
+
 class _Epochs:
-    """One start instant per source session for the replays opened together (reference counted)."""
+    """The current group per source; a group whose playback has started takes no new members
+    (a replay opened later starts a new group: a new recording)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._groups: dict[str, list] = {}  # path -> [epoch_us or None, refcount, t_min_us]
+        self._current: dict[str, _Group] = {}
 
-    def join(self, key: str, t_min_us: int) -> None:
+    def join(self, key: str, t_min_us: int) -> _Group:
         with self._lock:
-            g = self._groups.setdefault(key, [None, 0, t_min_us])
-            g[1] += 1
-            g[2] = min(g[2], t_min_us)
+            g = self._current.get(key)
+            if g is None or g.epoch_us is not None:
+                g = self._current[key] = _Group(t_min_us)
+            g.t_min_us = min(g.t_min_us, t_min_us)
+            return g
 
-    def epoch(self, key: str, lead_us: int) -> tuple[int, int]:
-        """(host µs at which source time ``t_min`` plays, ``t_min``); fixed by the first caller."""
+    def epoch(self, g: _Group, lead_us: int) -> tuple[int, int]:
+        """(host µs at which source time ``t_min`` plays, ``t_min``); fixed by the group's first read."""
         with self._lock:
-            g = self._groups[key]
-            if g[0] is None:
-                g[0] = host_clock_us() + lead_us
-            return g[0], g[2]
-
-    def leave(self, key: str) -> None:
-        with self._lock:
-            g = self._groups.get(key)
-            if g is not None:
-                g[1] -= 1
-                if g[1] <= 0:
-                    del self._groups[key]
+            if g.epoch_us is None:
+                g.epoch_us = host_clock_us() + lead_us
+            return g.epoch_us, g.t_min_us
 
 
 _EPOCHS = _Epochs()
@@ -135,7 +137,7 @@ class ReplayDriver(Driver):
         self._loop_index = 0
         self._frame_span = 0
         self._time_span_us = 0
-        self._group: str | None = None
+        self._group: _Group | None = None
         self.injected: dict[str, dict] = {}
 
     @classmethod
@@ -195,8 +197,7 @@ class ReplayDriver(Driver):
         manifest = s.manifest["sensors"][self._sensor]
         clock = dict(manifest.get("clock", {}))
         clock.update({"replayed_from": str(self.source_path), "source_sensor": self._sensor})
-        self._group = str(self.source_path.resolve())
-        _EPOCHS.join(self._group, self._events[0].t_us if self._events else 0)
+        self._group = _EPOCHS.join(str(self.source_path.resolve()), self._events[0].t_us if self._events else 0)
         return SensorDescription(model=src.model, serial=src.serial, streams=streams,
                                  firmware=manifest.get("firmware"), technology=manifest.get("technology", "unknown"),
                                  T_depth_color=src.T_depth_color, clock=clock)
@@ -270,11 +271,7 @@ class ReplayDriver(Driver):
                      clock_domain="replay", host_timestamp_us=host_clock_us(), image=img)
 
     def close(self) -> None:
-        if self._closed.is_set():
-            return
         self._closed.set()
-        if self._group is not None:
-            _EPOCHS.leave(self._group)
 
     @classmethod
     def enumerate(cls) -> list[DeviceInfo]:

@@ -1,0 +1,131 @@
+"""The replay driver: real-time playback of a session, injected drops and duplicates, refusals."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capture.drivers import SensorConfig, StreamSettings, driver_class
+from capture.drivers.replay import ReplayDriver
+from capture.errors import DeviceError, RigError
+from tests.capture.sessionkit import write_source
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    root = tmp_path_factory.mktemp("replay") / "src"
+    frames = write_source(root, n=12, sensors=("lq", "hq"), shift_us={"hq": 10_000})
+    return root, frames
+
+
+def config(source, serial="lq", streams=None, **options) -> SensorConfig:
+    return SensorConfig(id=serial, role="lq", driver="replay", serial=serial, streams=streams or {},
+                        options={"session": str(source), **options})
+
+
+def play(drv) -> list:
+    out = []
+    for f in drv.frames(timeout_s=0.5):
+        out.append(f)
+    return out
+
+
+def test_registered_and_plays_in_real_time_with_source_numbers_and_images(source):
+    root, written = source
+    assert driver_class("replay") is ReplayDriver
+    drv = ReplayDriver(config(root))
+    desc = drv.open()
+    assert set(desc.streams) == {"depth", "color"} and desc.serial == "SER-lq"
+    assert desc.streams["depth"].depth_unit_m == 0.001 and desc.streams["depth"].fps == 30.0
+    frames = play(drv)
+    drv.close()
+    depth = [f for f in frames if f.stream == "depth"]
+    assert [f.frame_number for f in depth] == list(range(12))
+    assert [f.device_timestamp_us for f in depth] == [r[1] for r in written[("lq", "depth")]]
+    for f, r in zip(depth, written[("lq", "depth")]):
+        assert np.array_equal(f.image, r[3]) and f.image.dtype == np.uint16
+    color = [f for f in frames if f.stream == "color"]
+    assert np.array_equal(color[3].image, written[("lq", "color")][3][3])
+    # real time: frame k arrives no earlier than k periods after frame 0, and not much later
+    host = np.array([f.host_timestamp_us for f in depth])
+    due = (np.array([r[2] for r in written[("lq", "depth")]]) - written[("lq", "depth")][0][2])
+    late = (host - host[0]) - due
+    assert late.min() >= -1_000, late  # never early (1 ms for clock reads)
+    assert np.median(late) < 15_000, late
+    assert 0.30 <= (host[-1] - host[0]) * 1e-6 <= 0.45  # 11 periods of 33.3 ms = 0.367 s
+
+
+def test_speed_and_loop(source):
+    root, _ = source
+    drv = ReplayDriver(config(root, streams={"depth": StreamSettings("depth", "depth")}, speed=4.0, loop=True))
+    drv.open()
+    got = []
+    while len(got) < 30:
+        got += drv.read(timeout_s=0.5)
+    drv.close()
+    assert drv.read(timeout_s=0.1) is None  # closed: the source has ended
+    numbers = [f.frame_number for f in got]
+    assert numbers[:30] == list(range(30))  # the loop continues the counter
+    dev = np.diff([f.device_timestamp_us for f in got])
+    assert np.all(dev > 0) and np.allclose(dev, 33_333, atol=1)
+    host = np.array([f.host_timestamp_us for f in got])
+    assert (host[-1] - host[0]) * 1e-6 < 29 * 0.0333 / 2  # 4x real time
+
+
+def test_injected_drops_and_duplicates(source):
+    root, _ = source
+    drv = ReplayDriver(config(root, drop_frames=[2, 3, 9], duplicate_frames=[5], speed=8.0))
+    drv.open()
+    frames = play(drv)
+    depth = [f.frame_number for f in frames if f.stream == "depth"]
+    assert depth == [0, 1, 4, 5, 5, 6, 7, 8, 10, 11]
+    assert drv.injected["depth"]["dropped_frames"] == [2, 3, 9]
+    assert drv.injected["color"]["duplicated"] == 1
+
+
+def test_random_injection_is_reproducible(source):
+    root, _ = source
+    runs = []
+    for _ in range(2):
+        drv = ReplayDriver(config(root, drop_rate=0.3, duplicate_rate=0.2, seed=3, speed=8.0))
+        drv.open()
+        runs.append([(f.stream, f.frame_number) for f in play(drv)])
+    assert runs[0] == runs[1] and len(runs[0]) != 24
+
+
+def test_two_replays_of_one_source_keep_their_relative_timing(source):
+    root, _ = source
+    lq, hq = ReplayDriver(config(root, "lq")), ReplayDriver(config(root, "hq"))
+    lq.open(), hq.open()
+    import threading
+    out = {}
+    threads = [threading.Thread(target=lambda d=d, k=k: out.__setitem__(k, play(d))) for k, d in (("lq", lq), ("hq", hq))]
+    [t.start() for t in threads]
+    [t.join() for t in threads]
+    t_lq = np.array([f.host_timestamp_us for f in out["lq"] if f.stream == "depth"])
+    t_hq = np.array([f.host_timestamp_us for f in out["hq"] if f.stream == "depth"])
+    shift = np.median(t_hq - t_lq)  # the source has hq 10 ms after lq
+    assert 5_000 < shift < 15_000, shift
+
+
+@pytest.mark.parametrize("kwargs, streams, match", [
+    ({"serial": "nope"}, None, "no sensor with id or serial 'nope'"),
+    ({}, {"ir": StreamSettings("ir", "ir")}, "has no stream 'ir'"),
+    ({}, {"depth": StreamSettings("depth", "depth", 640, 480)}, "cannot deliver 640x480"),
+    ({}, {"depth": StreamSettings("depth", "depth", fps=60.0)}, "cannot deliver 60"),
+])
+def test_refuses_what_the_source_cannot_do(source, kwargs, streams, match):
+    root, _ = source
+    drv = ReplayDriver(config(root, kwargs.get("serial", "lq"), streams))
+    with pytest.raises(DeviceError, match=match):
+        drv.open()
+
+
+def test_bad_options_and_missing_source(tmp_path):
+    with pytest.raises(RigError, match="unknown option 'sped'"):
+        ReplayDriver.check_config(config(tmp_path, sped=2))
+    with pytest.raises(RigError, match="options.session"):
+        ReplayDriver.check_config(SensorConfig("lq", "lq", "replay", "lq", {}, {}, {}))
+    with pytest.raises(RigError, match="drop_frames"):
+        ReplayDriver.check_config(config(tmp_path, drop_frames="5"))
+    with pytest.raises(DeviceError, match="cannot replay"):
+        ReplayDriver(config(tmp_path / "none")).open()

@@ -19,9 +19,12 @@ SDK conventions converted here:
   ``float32`` (``600.5``, not ``600.5000000001``; ``np.float32(value)`` gives the SDK's number back);
 * ``rs.extrinsics.rotation`` is **column-major**;
 * distortion ``brown_conrady`` is OpenCV's model with the same coefficient order
-  (k1, k2, p1, p2, k3); ``inverse_brown_conrady`` and ``modified_brown_conrady`` are not, and are
-  converted to the closest OpenCV model by a linear least-squares fit over the image (the
-  residual is reported; over :data:`MAX_FIT_ERROR_PX` it is an error); fisheye models are refused.
+  (k1, k2, p1, p2, k3). ``inverse_brown_conrady`` (D400 colour cameras) and
+  ``modified_brown_conrady`` are, in librealsense 2.5x, both the forward model with the tangential
+  terms applied after the radial factor (``rs2_project_point_to_pixel``); that differs from OpenCV
+  only in second-order tangential terms and is converted to the closest OpenCV model by a linear
+  least-squares fit over the image (residual recorded in ``source.notes``; over
+  :data:`MAX_FIT_ERROR_PX` it is an error). Fisheye models are refused.
 
 Rig file (``data_manifests/rig.md``)::
 
@@ -68,8 +71,8 @@ from capture.errors import CalibrationError, DeviceError, RigError, SessionForma
 
 log = logging.getLogger(__name__)
 
-#: Largest residual (pixels, over the image) accepted when a non-OpenCV distortion model is
-#: converted to OpenCV coefficients.
+#: Largest residual (pixels, anywhere in the image) accepted when a non-OpenCV distortion model is
+#: converted to OpenCV coefficients (a D455 colour camera's model fits to ~0.013 px in the far corners).
 MAX_FIT_ERROR_PX = 0.05
 
 #: Our stream name -> (SDK stream type, SDK stream index; None = any).
@@ -125,23 +128,20 @@ def transform_from_rs(extrinsics) -> Transform:
         return Transform.from_rt(u @ vt, t)
 
 
-def _rs_distort(model: str, coeffs: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """librealsense's own maps on normalised coordinates ``(N, 2)``.
+def _rs_distort(coeffs: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """librealsense's projection for ``modified_brown_conrady`` and ``inverse_brown_conrady``.
 
-    ``modified_brown_conrady``: undistorted -> distorted (projection, rsutil.h).
-    ``inverse_brown_conrady``: distorted -> undistorted (deprojection, rsutil.h)."""
+    Undistorted -> distorted normalised coordinates ``(N, 2)``: the radial factor first, then the
+    tangential terms on the radially distorted point, with ``r2`` of the undistorted point
+    (``rs2_project_point_to_pixel`` in rsutil.h of librealsense 2.5x, which treats both models alike;
+    its deprojection inverts this map iteratively)."""
     c = coeffs
     x, y = xy[:, 0], xy[:, 1]
     r2 = x * x + y * y
     f = 1 + c[0] * r2 + c[1] * r2 * r2 + c[4] * r2 * r2 * r2
-    if model == "modified_brown_conrady":
-        x, y = x * f, y * f
-        return np.stack([x + 2 * c[2] * x * y + c[3] * (r2 + 2 * x * x),
-                         y + 2 * c[3] * x * y + c[2] * (r2 + 2 * y * y)], axis=1)
-    if model == "inverse_brown_conrady":
-        return np.stack([x * f + 2 * c[2] * x * y + c[3] * (r2 + 2 * x * x),
-                         y * f + 2 * c[3] * x * y + c[2] * (r2 + 2 * y * y)], axis=1)
-    raise ValueError(model)
+    x, y = x * f, y * f
+    return np.stack([x + 2 * c[2] * x * y + c[3] * (r2 + 2 * x * x),
+                     y + 2 * c[3] * x * y + c[2] * (r2 + 2 * y * y)], axis=1)
 
 
 def fit_opencv_distortion(undistorted: np.ndarray, distorted: np.ndarray) -> np.ndarray:
@@ -198,11 +198,10 @@ def intrinsics_from_rs(intr, *, what: str = "stream") -> IntrinsicsConversion:
     if model in ("inverse_brown_conrady", "modified_brown_conrady"):
         v, u = np.mgrid[0:h:8, 0:w:8]
         uv = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64)
-        xy = np.stack([(uv[:, 0] - cx) / fx, (uv[:, 1] - cy) / fy], axis=1)
-        if model == "inverse_brown_conrady":  # coefficients describe distorted -> undistorted
-            distorted, undistorted = xy, _rs_distort(model, coeffs, xy)
-        else:  # coefficients describe undistorted -> distorted
-            undistorted, distorted = xy, _rs_distort(model, coeffs, xy)
+        # undistorted points whose images cover the picture (OpenCV's model is close enough to invert)
+        approx = Intrinsics(w, h, fx, fy, cx, cy, "opencv", tuple(coeffs[:5]))
+        undistorted = approx.pixel_to_normalized(uv)
+        distorted = _rs_distort(coeffs, undistorted)
         fitted = fit_opencv_distortion(undistorted, distorted)
         K = Intrinsics(w, h, fx, fy, cx, cy, "opencv", tuple(float(c) for c in fitted))
         fit_err = float((np.abs(K.distort(undistorted) - distorted) * np.array([fx, fy])).max())

@@ -38,6 +38,7 @@ class SynthSpec:
     period_us: int = 33_333
     domain: str = "hardware_clock"
     with_color: bool = True
+    with_depth: bool = True
     time_of_arrival_ms: int | None = 1_700_000_000_000
 
     def depth_timestamps_us(self) -> list[int]:
@@ -79,15 +80,18 @@ def record_synthetic(path: str | Path, spec: SynthSpec) -> Path:
     dev.register_info(rs.camera_info.name, spec.name)
     dev.register_info(rs.camera_info.serial_number, spec.serial)
     dev.register_info(rs.camera_info.firmware_version, spec.firmware)
-    depth_sensor = dev.add_sensor("Stereo Module")
-    vs = rs.video_stream()
-    vs.type, vs.index, vs.uid = rs.stream.depth, 0, 0
-    vs.width, vs.height = spec.depth_size
-    vs.fps, vs.bpp, vs.fmt = spec.fps, 2, rs.format.z16
-    vs.intrinsics = _intrinsics(*spec.depth_size, spec.depth_intrinsics)
-    depth_profile = depth_sensor.add_video_stream(vs)
-    depth_sensor.add_read_only_option(rs.option.depth_units, spec.depth_units)
-    color_sensor = color_profile = None
+    sensors: list = []
+    depth_profile = None
+    if spec.with_depth:
+        depth_sensor = dev.add_sensor("Stereo Module")
+        vs = rs.video_stream()
+        vs.type, vs.index, vs.uid = rs.stream.depth, 0, 0
+        vs.width, vs.height = spec.depth_size
+        vs.fps, vs.bpp, vs.fmt = spec.fps, 2, rs.format.z16
+        vs.intrinsics = _intrinsics(*spec.depth_size, spec.depth_intrinsics)
+        depth_profile = depth_sensor.add_video_stream(vs)
+        depth_sensor.add_read_only_option(rs.option.depth_units, spec.depth_units)
+        sensors.append((depth_sensor, depth_profile, 0))
     if spec.with_color:
         color_sensor = dev.add_sensor("RGB Camera")
         cs = rs.video_stream()
@@ -96,21 +100,25 @@ def record_synthetic(path: str | Path, spec: SynthSpec) -> Path:
         cs.fps, cs.bpp, cs.fmt = spec.fps, 3, rs.format.rgb8
         cs.intrinsics = _intrinsics(*spec.color_size, spec.color_intrinsics)
         color_profile = color_sensor.add_video_stream(cs)
-        ex = rs.extrinsics()
-        ex.rotation = [float(v) for v in spec.rotation_matrix().T.ravel()]  # column-major
-        ex.translation = list(spec.translation)
-        depth_profile.register_extrinsics_to(color_profile, ex)
+        if depth_profile is not None:
+            ex = rs.extrinsics()
+            ex.rotation = [float(v) for v in spec.rotation_matrix().T.ravel()]  # column-major
+            ex.translation = list(spec.translation)
+            depth_profile.register_extrinsics_to(color_profile, ex)
+        sensors.append((color_sensor, color_profile, 1))
     recorder = rs.recorder(str(path), dev)
-    sensors = [(depth_sensor, depth_profile)] + ([(color_sensor, color_profile)] if spec.with_color else [])
-    for s, p in sensors:
+    for s, p, _ in sensors:
         s.open(p)
         s.start(lambda f: None)
     domain = getattr(rs.timestamp_domain, spec.domain)
-    events = [(t, 0, i) for i, t in enumerate(spec.depth_timestamps_us())]
+    events = []
+    if spec.with_depth:
+        events += [(t, 0, i) for i, t in enumerate(spec.depth_timestamps_us())]
     if spec.with_color:
         events += [(t, 1, i) for i, t in enumerate(spec.color_timestamps_us())]
+    by_kind = {kind: (s, p) for s, p, kind in sensors}
     for t_us, which, i in sorted(events):
-        sensor, profile = sensors[which]
+        sensor, profile = by_kind[which]
         img = spec.depth_image(i) if which == 0 else spec.color_image(i)
         number = (spec.depth_frame_numbers if which == 0 else spec.color_frame_numbers)[i]
         sensor.set_metadata(rs.frame_metadata_value.frame_counter, number)
@@ -131,7 +139,7 @@ def record_synthetic(path: str | Path, spec: SynthSpec) -> Path:
             f.depth_units = spec.depth_units
         sensor.on_video_frame(f)
     time.sleep(0.05)
-    for s, _ in sensors:
+    for s, _, _ in sensors:
         s.stop()
         s.close()
     recorder.pause()

@@ -38,7 +38,7 @@ from typing import TextIO
 
 from capture.drivers.base import (Driver, Frame, SensorDescription, driver_class, host_clock_us,
                                   host_clock_utc_offset_us)
-from capture.errors import DeviceError, RecordingError
+from capture.errors import DeviceError, RecordingError, RigError
 from capture.rig import Rig
 from capture.session import SessionWriter
 from depthbench.errors import DepthbenchError
@@ -195,12 +195,16 @@ class _Recorder:
     def open_drivers(self) -> None:
         check_output_free(self.out, force=self.force, what="session folder")
         classes = {}
+        where = f"{self.rig.path}: " if self.rig.path else ""
         for cfg in self.rig.sensors:
             try:
                 cls = driver_class(cfg.driver)
             except DeviceError as exc:
-                raise DeviceError(f"sensor {cfg.id!r}: {exc}") from None
-            cls.check_config(cfg)
+                raise DeviceError(f"{where}sensor {cfg.id!r}: {exc}") from None
+            try:
+                cls.check_config(cfg)
+            except RigError as exc:
+                raise RigError(f"{where}{exc}") from None
             classes[cfg.id] = cls
         try:
             for cfg in self.rig.sensors:

@@ -1,0 +1,773 @@
+"""Depth-denoising metrics: pure numpy (and scipy's KD-tree), no I/O.
+
+Every metric compares a prediction (the denoised LQ depth) with a reference (the HQ depth warped
+onto the LQ image, or the simulator's noise-free truth). Depths are ``(H, W)`` float arrays in
+metres with NaN for "no measurement"; errors are reported in millimetres.
+
+Pixel sets (the same for every metric):
+
+* ``R`` - reference pixels: reference finite (and > 0), inside the ROI mask when one is given;
+* ``M`` - scored pixels: ``R`` and the prediction finite (and > 0). Every error metric is a mean over
+  ``M``; :func:`fill_rate` is ``|M| / |R|``, so a method cannot win by deleting hard pixels.
+
+Plane-fit RMSE (Sterzentsenko et al., DDD; seed report section IV)
+-----------------------------------------------------------------
+For every reference point ``p`` (pixels ``R``, unprojected with the LQ intrinsics) the least-squares
+plane through all reference points within ``radius_m`` of ``p`` (``p`` itself included) is fitted
+(total least squares: through the centroid, normal = eigenvector of the smallest eigenvalue of the
+neighbourhood covariance). For every scored point (pixels ``M``) the closest point ``q*`` of the
+denoised point cloud (prediction finite inside the ROI) is found, and ``|n . (q* - c)|`` is that
+point's distance. The metric is the RMSE of these distances over scored points, in mm.
+
+A point is excluded, and counted, when its neighbourhood has fewer than ``min_neighbors`` points
+(``plane_fit_excluded_few``) or does not span a plane (``plane_fit_excluded_degenerate``: the
+second-largest spread is below ``min_spread_ratio`` times the largest, e.g. a single row of pixels).
+
+The 5 mm radius on 640x480 depth: one pixel covers ``z / f`` metres, about 1.9 mm at 1 m, 3.7 mm
+at 2 m and 5.6 mm at 3 m for f = 537 px. A fronto-parallel surface therefore has about 21
+neighbours within 5 mm at 1 m, 5 (the pixel and its 4-neighbours) at 2 m and none beyond
+~2.7 m: there every point is excluded and the metric is undefined (NaN, with the exclusion counted).
+Slanted surfaces have fewer neighbours still. The report plots the excluded share against depth.
+Because the distance is taken to the *closest* denoised point, noise much larger than the pixel
+footprint is under-estimated (the closest of many noisy points lies near the plane); the pixel-wise
+RMSE/MAE do not have this bias.
+
+Two exact implementations, equal to a per-point brute force (tests):
+
+* ``"grid"`` (organised clouds, no lens distortion): neighbours are searched in the depth image.
+  A point ``q`` with ``|q - p| <= d`` lies within ``f * d * sqrt(1 + x_n^2) / (z_p - d)`` pixels of
+  ``p`` (``x_n`` the normalised coordinate of ``p``), so a per-pixel window bound makes the search
+  exact; neighbourhood sums use shifted-array arithmetic. The closest-point search widens rings
+  until a lower bound on every unvisited pixel's distance proves the best one found; pixels whose
+  bound exceeds the window cap fall back to the KD-tree.
+* ``"kdtree"`` (any cloud): scipy ``cKDTree`` radius pairs and nearest neighbours.
+
+Plane normals come from a vectorised closed-form 3x3 symmetric eigen-solver (trigonometric
+eigenvalues, cross-product eigenvector), ~30x faster than batched ``numpy.linalg.eigh``.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from concurrent.futures import ThreadPoolExecutor
+from functools import lru_cache
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from bench.errors import BenchError
+from capture.camera import Intrinsics
+
+#: Frame-level metrics in the results table, with their units.
+UNITS = {
+    "n_reference": "count", "n_valid": "count", "fill_rate": "ratio",
+    "mse_mm2": "mm^2", "rmse_mm": "mm", "mae_mm": "mm", "bias_mm": "mm",
+    "plane_fit_rmse_mm": "mm", "plane_fit_n": "count", "plane_fit_excluded_few": "count",
+    "plane_fit_excluded_degenerate": "count", "plane_fit_excluded": "count",
+    "plane_fit_neighbors_median": "count", "normal_angle_deg": "deg",
+}
+#: Metrics also given per reference-depth bin.
+BINNED = ("n_valid", "mae_mm", "rmse_mm", "plane_fit_n", "plane_fit_rmse_mm", "plane_fit_excluded")
+PLANE_FIT_METHODS = ("auto", "grid", "kdtree")
+_GRID_CAP = 8          # widest pixel window (Chebyshev radius) the grid search visits before the KD-tree fallback
+_SENTINEL = 1.0e6      # invalid pixels sit at distinct far-away positions (1e6 m apart), never within any radius
+_STRIP_ELEMENTS = 16384  # elements per row strip of the grid search (a few arrays of this size stay in L2 cache)
+
+
+class MetricInputError(BenchError):
+    """Arrays given to a metric do not fit together (shapes, intrinsics, parameters)."""
+
+
+@dataclass(frozen=True)
+class MetricConfig:
+    """Parameters of the metrics; part of a results folder's identity.
+
+    Attributes:
+        radius_m: plane-fit neighbourhood radius in metres (DDD: 5 mm).
+        min_neighbors: fewest reference points (the point itself included) for a plane.
+        min_spread_ratio: a neighbourhood whose second-largest standard deviation is below this
+            fraction of its largest is a line, not a plane, and is excluded.
+        depth_bin_m: width of the reference-depth bins of the error-against-depth rows.
+    """
+
+    radius_m: float = 0.005
+    min_neighbors: int = 3
+    min_spread_ratio: float = 0.1
+    depth_bin_m: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.radius_m) and self.radius_m > 0):
+            raise MetricInputError(f"plane-fit radius must be positive, got {self.radius_m} m")
+        if int(self.min_neighbors) != self.min_neighbors or self.min_neighbors < 3:
+            raise MetricInputError(f"min_neighbors must be an integer >= 3 (a plane needs 3 points), got {self.min_neighbors}")
+        if not 0 <= self.min_spread_ratio < 1:
+            raise MetricInputError(f"min_spread_ratio must lie in [0, 1), got {self.min_spread_ratio}")
+        if not (np.isfinite(self.depth_bin_m) and self.depth_bin_m > 0):
+            raise MetricInputError(f"depth_bin_m must be positive, got {self.depth_bin_m}")
+
+    def to_dict(self) -> dict:
+        return {k: (int(v) if k == "min_neighbors" else float(v)) for k, v in asdict(self).items()}
+
+
+# --------------------------------------------------------------------------------- pixel sets
+def _finite_positive(depth: np.ndarray) -> np.ndarray:
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(depth) & (depth > 0)
+
+
+def _check_pair(pred: np.ndarray, ref: np.ndarray, roi: np.ndarray | None) -> None:
+    if pred.ndim != 2 or pred.shape != ref.shape:
+        raise MetricInputError(f"prediction {pred.shape} and reference {ref.shape} must be (H, W) of the same size")
+    if roi is not None and roi.shape != ref.shape:
+        raise MetricInputError(f"ROI mask {roi.shape} must have the reference's shape {ref.shape}")
+
+
+def reference_mask(ref: np.ndarray, roi: np.ndarray | None = None) -> np.ndarray:
+    """Pixels ``R``: reference valid, inside ``roi`` when given. ``(H, W)`` bool."""
+    m = _finite_positive(ref)
+    return m & roi.astype(bool) if roi is not None else m
+
+
+def valid_mask(pred: np.ndarray, ref: np.ndarray, roi: np.ndarray | None = None) -> np.ndarray:
+    """Pixels ``M``: valid in both prediction and reference, inside ``roi``. ``(H, W)`` bool."""
+    _check_pair(pred, ref, roi)
+    return reference_mask(ref, roi) & _finite_positive(pred)
+
+
+# --------------------------------------------------------------------------------- pixel errors
+def pixel_errors(pred: np.ndarray, ref: np.ndarray, roi: np.ndarray | None = None) -> dict[str, float]:
+    """MSE (mm^2), RMSE, MAE and mean signed error ``pred - ref`` (mm) over pixels ``M``.
+
+    Returns a dict with ``mse_mm2, rmse_mm, mae_mm, bias_mm, n_valid`` (NaN errors when ``M`` is empty).
+    """
+    m = valid_mask(pred, ref, roi)
+    e = (pred[m].astype(np.float64) - ref[m].astype(np.float64)) * 1000.0
+    if e.size == 0:
+        return {"mse_mm2": np.nan, "rmse_mm": np.nan, "mae_mm": np.nan, "bias_mm": np.nan, "n_valid": 0}
+    mse = float(np.mean(e * e))
+    return {"mse_mm2": mse, "rmse_mm": float(np.sqrt(mse)), "mae_mm": float(np.mean(np.abs(e))),
+            "bias_mm": float(np.mean(e)), "n_valid": int(e.size)}
+
+
+def mse_mm2(pred, ref, roi=None) -> float:
+    """Mean squared error in mm^2 over pixels valid in both (inside ``roi``)."""
+    return pixel_errors(pred, ref, roi)["mse_mm2"]
+
+
+def rmse_mm(pred, ref, roi=None) -> float:
+    """Root mean squared error in mm over pixels valid in both (inside ``roi``)."""
+    return pixel_errors(pred, ref, roi)["rmse_mm"]
+
+
+def mae_mm(pred, ref, roi=None) -> float:
+    """Mean absolute error in mm over pixels valid in both (inside ``roi``)."""
+    return pixel_errors(pred, ref, roi)["mae_mm"]
+
+
+def fill_rate(pred: np.ndarray, ref: np.ndarray, roi: np.ndarray | None = None) -> float:
+    """Share of reference-valid ROI pixels that the prediction leaves valid, ``|M| / |R|`` (NaN if ``R`` is empty)."""
+    n_ref = int(np.count_nonzero(reference_mask(ref, roi)))
+    return float(np.count_nonzero(valid_mask(pred, ref, roi)) / n_ref) if n_ref else float("nan")
+
+
+# --------------------------------------------------------------------------------- normals
+def normal_map(depth: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
+    """Surface normals of a depth image from central differences of its point cloud.
+
+    ``n(u, v) = normalise((P[v, u+1] - P[v, u-1]) x (P[v+1, u] - P[v-1, u]))``, oriented towards the
+    camera (``n_z < 0``). Returns ``(H, W, 3)`` float64, NaN where a neighbour or the pixel is invalid
+    and on the image border.
+    """
+    if depth.shape != intrinsics.shape:
+        raise MetricInputError(f"depth has shape {depth.shape}, intrinsics are {intrinsics.width}x{intrinsics.height}")
+    xn, yn, _ = _rays(intrinsics)
+    z = np.where(_finite_positive(depth), depth, np.nan).astype(np.float64)
+    P = np.stack([xn * z, yn * z, z], axis=-1)
+    n = np.full(P.shape, np.nan)
+    du = P[1:-1, 2:] - P[1:-1, :-2]
+    dv = P[2:, 1:-1] - P[:-2, 1:-1]
+    c = np.cross(du, dv)
+    norm = np.linalg.norm(c, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = c / norm
+        c = np.where(c[..., 2:3] > 0, -c, c)
+    n[1:-1, 1:-1] = np.where(norm > 0, c, np.nan)
+    return n
+
+
+def normal_angle_deg(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, roi: np.ndarray | None = None, *,
+                     ref_normals: np.ndarray | None = None) -> float:
+    """Mean angle in degrees between the :func:`normal_map` normals of prediction and reference.
+
+    Over pixels ``M`` where both normals are defined; NaN when there are none. ``ref_normals``:
+    ``normal_map(ref, intrinsics)`` when the caller has it.
+    """
+    m = valid_mask(pred, ref, roi)
+    if ref_normals is None:
+        ref_normals = normal_map(ref, intrinsics)
+    a, b = normal_map(pred, intrinsics)[m], ref_normals[m]
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    if not ok.any():
+        return float("nan")
+    cos = np.clip(np.einsum("ij,ij->i", a[ok], b[ok]), -1.0, 1.0)
+    return float(np.degrees(np.arccos(cos)).mean())
+
+
+# --------------------------------------------------------------------------------- eigen solver
+def smallest_eigh3(c00, c01, c02, c11, c12, c22):
+    """Eigen-decomposition of many symmetric 3x3 matrices, closed form, vectorised.
+
+    Arguments are the six upper-triangle entries, float64 arrays of shape ``(n,)``. Returns
+    ``(lam_min, lam_mid, lam_max, v_min)``, eigenvalues ``(n,)`` in increasing order and ``v_min``
+    ``(n, 3)`` the unit eigenvector of the smallest one (NaN where the matrix is a multiple of the
+    identity). Eigenvalues by the trigonometric method (Smith 1961); the eigenvector is the longest
+    cross product of two rows of ``C - lam_min I``.
+    """
+    q = (c00 + c11 + c22) / 3.0
+    a00, a11, a22 = c00 - q, c11 - q, c22 - q
+    p = np.sqrt((a00 * a00 + a11 * a11 + a22 * a22 + 2.0 * (c01 * c01 + c02 * c02 + c12 * c12)) / 6.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv = 1.0 / p
+        b00, b11, b22, b01, b02, b12 = a00 * inv, a11 * inv, a22 * inv, c01 * inv, c02 * inv, c12 * inv
+        det = b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02) + b02 * (b01 * b12 - b11 * b02)
+        phi = np.arccos(np.clip(det * 0.5, -1.0, 1.0)) / 3.0
+    lam_max = q + 2.0 * p * np.cos(phi)
+    lam_min = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+    lam_mid = 3.0 * q - lam_max - lam_min
+    # rows of C - lam_min I: r0 = (x0, c01, c02), r1 = (c01, y1, c12), r2 = (c02, c12, z2)
+    x0, y1, z2 = c00 - lam_min, c11 - lam_min, c22 - lam_min
+    best = np.stack([c01 * c12 - c02 * y1, c02 * c01 - x0 * c12, x0 * y1 - c01 * c01])          # r0 x r1
+    nb = np.einsum("kn,kn->n", best, best)
+    for cand in (np.stack([c01 * z2 - c02 * c12, c02 * c02 - x0 * z2, x0 * c12 - c01 * c02]),   # r0 x r2
+                 np.stack([y1 * z2 - c12 * c12, c12 * c02 - c01 * z2, c01 * c12 - y1 * c02])):  # r1 x r2
+        nc = np.einsum("kn,kn->n", cand, cand)
+        take = nc > nb
+        best = np.where(take, cand, best)
+        nb = np.where(take, nc, nb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v = (best / np.sqrt(nb)).T
+    return lam_min, lam_mid, lam_max, v
+
+
+# --------------------------------------------------------------------------------- plane fit
+@dataclass
+class PlaneFitResult:
+    """Per-pixel outcome of :func:`plane_fit_rmse`.
+
+    Attributes:
+        rmse_mm: RMSE of the plane distances over used points, mm (NaN when none is used).
+        distance_m: ``(H, W)`` plane distance in metres, NaN where the pixel was not used.
+        neighbors: ``(H, W)`` int32 neighbourhood size (the point itself included) of every scored pixel, 0 elsewhere.
+        status: ``(H, W)`` int8: 0 not scored (outside ``M``), 1 used, 2 too few neighbours,
+            3 degenerate (line-like) neighbourhood.
+        method: ``"grid"`` or ``"kdtree"``.
+    """
+
+    rmse_mm: float
+    distance_m: np.ndarray
+    neighbors: np.ndarray
+    status: np.ndarray
+    method: str = "grid"
+
+    @property
+    def n_used(self) -> int:
+        return int(np.count_nonzero(self.status == 1))
+
+    @property
+    def n_excluded_few(self) -> int:
+        return int(np.count_nonzero(self.status == 2))
+
+    @property
+    def n_excluded_degenerate(self) -> int:
+        return int(np.count_nonzero(self.status == 3))
+
+
+@lru_cache(maxsize=8)
+def _rays(intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Normalised ray coordinates ``xn, yn`` ``(H, W)`` and the grid bound factor ``B`` (pixels per metre at 1 m)."""
+    rays = intrinsics.ray_grid()
+    xn, yn = np.ascontiguousarray(rays[..., 0]), np.ascontiguousarray(rays[..., 1])
+    b = np.maximum(intrinsics.fx * np.sqrt(1.0 + xn * xn), intrinsics.fy * np.sqrt(1.0 + yn * yn))
+    for a in (xn, yn, b):
+        a.setflags(write=False)
+    return xn, yn, b
+
+
+def _ring(k: int) -> list[tuple[int, int]]:
+    """Pixel offsets ``(dv, du)`` at Chebyshev distance exactly ``k``."""
+    if k == 0:
+        return [(0, 0)]
+    out = [(dv, du) for dv in (-k, k) for du in range(-k, k + 1)]
+    out += [(dv, du) for du in (-k, k) for dv in range(-k + 1, k)]
+    return out
+
+
+def _half_ring(k: int) -> list[tuple[int, int]]:
+    """One offset of each opposite pair of :func:`_ring` (``dv > 0``, or ``dv == 0`` and ``du > 0``)."""
+    return [(dv, du) for dv, du in _ring(k) if dv > 0 or (dv == 0 and du > 0)]
+
+
+class _Grid:
+    """Flat padded image layout: pixel ``(v, u)`` sits at ``(v + pad) * Wp + u + pad``.
+
+    Invalid pixels (and the border) hold far-away points, each at its own position
+    (``_SENTINEL`` metres apart), so no distance test ever pairs them. Shifting an image by a pixel
+    offset is then a contiguous slice, and the work is split into row strips that stay in cache and
+    run on threads (numpy releases the GIL).
+    """
+
+    def __init__(self, shape: tuple[int, int], pad: int = _GRID_CAP) -> None:
+        self.H, self.W = shape
+        self.pad, self.Wp = pad, self.W + 2 * pad
+        self.size = (self.H + 2 * pad) * self.Wp
+        self.base = pad * self.Wp
+        rows = max(4, _STRIP_ELEMENTS // self.Wp)
+        self.strips = [(v0, min(v0 + rows, self.H)) for v0 in range(0, self.H, rows)]
+
+    def offset(self, dv: int, du: int) -> int:
+        return dv * self.Wp + du
+
+    def start(self, v0: int) -> int:
+        """Flat index of the first element (left border column) of row ``v0``."""
+        return self.base + v0 * self.Wp
+
+    def embed_points(self, depth: np.ndarray, valid: np.ndarray, xn: np.ndarray, yn: np.ndarray) -> list[np.ndarray]:
+        """Points ``z * (xn, yn, 1)`` as three flat padded arrays, invalid pixels at sentinel positions."""
+        far = _SENTINEL * (1.0 + np.arange(self.size, dtype=np.float64))
+        z = np.where(valid, depth, 0.0).astype(np.float64)
+        out = []
+        for comp in (xn * z, yn * z, z):
+            a = far.copy()
+            core = a[self.base:self.base + self.H * self.Wp].reshape(self.H, self.Wp)[:, self.pad:self.pad + self.W]
+            core[...] = np.where(valid, comp, core)
+            out.append(a)
+        return out
+
+    def flat_index(self, pixels: np.ndarray) -> np.ndarray:
+        """Flat padded index of unpadded flat pixel indices."""
+        v, u = np.divmod(pixels, self.W)
+        return (v + self.pad) * self.Wp + u + self.pad
+
+
+def _run(fn, items, threads: int) -> list:
+    if threads <= 1 or len(items) <= 1:
+        return [fn(*it) for it in items]
+    with ThreadPoolExecutor(min(threads, len(items))) as ex:
+        return list(ex.map(lambda it: fn(*it), items))
+
+
+_PRODUCTS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def _strip_sums(G: _Grid, X: list[np.ndarray], bound: np.ndarray, r2: float, v0: int, v1: int) -> np.ndarray:
+    """Neighbourhood sums of the strip's pixels (rows ``v0..v1``) plus one halo row below.
+
+    Ring 1 pairs are visited once (offsets to the right/below) and added to both ends; rings >= 2
+    are visited from each pixel whose window ``bound`` reaches them. Returns ``(10, (v1-v0+1)*Wp+2)``:
+    count, sums of ``q - p`` (3) and of their products (6), in the layout starting at row ``v0``.
+    """
+    L = (v1 - v0) * G.Wp
+    s0 = G.start(v0)
+    acc = np.zeros((10, L + G.Wp + 2))
+    d, t = np.empty((3, L)), np.empty((3, L))
+    d2, tmp = np.empty(L), np.empty(L)
+    m = np.empty(L, bool)
+    p = [X[c][s0:s0 + L] for c in range(3)]
+    acc[0, :L] = 1.0                          # the point itself
+    for dv, du in _half_ring(1):
+        off = G.offset(dv, du)
+        for c in range(3):
+            np.subtract(X[c][s0 + off:s0 + off + L], p[c], out=d[c])
+        np.multiply(d[0], d[0], out=d2)
+        np.multiply(d[1], d[1], out=tmp)
+        d2 += tmp
+        np.multiply(d[2], d[2], out=tmp)
+        d2 += tmp
+        np.less_equal(d2, r2, out=m)
+        acc[0, :L] += m
+        acc[0, off:off + L] += m
+        np.multiply(d, m, out=t)
+        acc[1:4, :L] += t
+        acc[1:4, off:off + L] -= t
+        for k, (a, b) in enumerate(_PRODUCTS):
+            np.multiply(t[a], d[b], out=tmp)
+            acc[4 + k, :L] += tmp
+            acc[4 + k, off:off + L] += tmp
+    # rings >= 2, from each pixel whose bound reaches them (every offset, own side only)
+    bs = bound[v0:v1]
+    deep = np.flatnonzero((bs >= 2).ravel())
+    if deep.size:
+        vv, uu = np.divmod(deep, G.W)
+        loc = vv * G.Wp + uu + G.pad          # position in the strip layout
+        w = bs.ravel()[deep]
+        for k in range(2, int(min(_GRID_CAP, np.floor(w.max()))) + 1):
+            sel = w >= k
+            lk = loc[sel]
+            fp = s0 + lk
+            pk = [X[c][fp] for c in range(3)]
+            for dv, du in _ring(k):
+                fq = fp + G.offset(dv, du)
+                dk = [X[c][fq] - pk[c] for c in range(3)]
+                hit = np.flatnonzero(dk[0] * dk[0] + dk[1] * dk[1] + dk[2] * dk[2] <= r2)
+                if hit.size:
+                    lh = lk[hit]
+                    dh = [dk[c][hit] for c in range(3)]
+                    acc[0, lh] += 1.0
+                    for c in range(3):
+                        acc[1 + c, lh] += dh[c]
+                    for j, (a, b) in enumerate(_PRODUCTS):
+                        acc[4 + j, lh] += dh[a] * dh[b]
+    return acc
+
+
+def _strip_closest(G: _Grid, Xr: list[np.ndarray], Xq: list[np.ndarray], fp: np.ndarray, z: np.ndarray,
+                   b: np.ndarray, v0: int, v1: int) -> tuple[np.ndarray, np.ndarray]:
+    """Closest denoised point to the scored pixels ``fp`` (flat padded, all in rows ``v0..v1``).
+
+    Rings 0 and 1 are searched for the whole strip; then, pixel by pixel (vectorised), further
+    rings until no unvisited pixel can be closer: beyond ring ``k`` every point is at least
+    ``(k + 1) z / (b + k + 1)`` away (``z`` reference depth, ``b`` the bound factor). Returns
+    ``(flat index of the closest point, still open at the cap)``.
+    """
+    L = (v1 - v0) * G.Wp
+    s0 = G.start(v0)
+    offsets = [G.offset(dv, du) for dv, du in _ring(0) + _ring(1)]
+    best = np.full(L, np.inf)
+    arg = np.zeros(L, np.int8)
+    d, t, d2 = np.empty(L), np.empty(L), np.empty(L)
+    better = np.empty(L, bool)
+    p = [Xr[c][s0:s0 + L] for c in range(3)]
+    for k, off in enumerate(offsets):
+        np.subtract(Xq[0][s0 + off:s0 + off + L], p[0], out=d)
+        np.multiply(d, d, out=d2)
+        for c in (1, 2):
+            np.subtract(Xq[c][s0 + off:s0 + off + L], p[c], out=d)
+            np.multiply(d, d, out=t)
+            d2 += t
+        np.less(d2, best, out=better)
+        np.copyto(best, d2, where=better)
+        np.copyto(arg, k, where=better)
+    loc = fp - s0
+    bd = best[loc]
+    qi = fp + np.asarray(offsets)[arg[loc]]
+    todo = np.flatnonzero(bd > (2.0 * z / (b + 2.0) * (1.0 - 1e-9)) ** 2)
+    for k in range(2, _GRID_CAP + 1):
+        if todo.size == 0:
+            break
+        ft = fp[todo]
+        pk = [Xr[c][ft] for c in range(3)]
+        bdt, qit = bd[todo], qi[todo]
+        for dv, du in _ring(k):
+            fq = ft + G.offset(dv, du)
+            dk = [Xq[c][fq] - pk[c] for c in range(3)]
+            d2k = dk[0] * dk[0] + dk[1] * dk[1] + dk[2] * dk[2]
+            closer = d2k < bdt
+            bdt = np.where(closer, d2k, bdt)
+            qit = np.where(closer, fq, qit)
+        bd[todo], qi[todo] = bdt, qit
+        todo = todo[bdt > ((k + 1) * z[todo] / (b[todo] + k + 1) * (1.0 - 1e-9)) ** 2]
+    still_open = np.zeros(fp.size, bool)
+    still_open[todo] = True
+    return qi, still_open
+
+
+def _ball_pairs(tree: cKDTree, queries: np.ndarray, r: float, self_index: np.ndarray):
+    """Directed pairs (query position, tree index) within ``r``, excluding each query's own point."""
+    lists = tree.query_ball_point(queries, r, return_sorted=False)
+    lengths = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
+    j = np.fromiter((k for x in lists for k in x), dtype=np.int64, count=int(lengths.sum()))
+    i = np.repeat(np.arange(len(lists)), lengths)
+    keep = j != self_index[i]
+    return i[keep], j[keep]
+
+
+def _neighbour_sums_pairs(pts, pos, i, j):
+    """Neighbourhood sums for the query points ``pos`` from pairs (query position ``i``, point ``j``).
+
+    Returns ``(10, m)``: count (the point itself included), sums of ``q - p`` (3) and of the
+    products ``(q - p)_a (q - p)_b`` (xx, xy, xz, yy, yz, zz).
+    """
+    d = pts[j] - pts[pos[i]]
+    m = len(pos)
+    out = np.empty((10, m))
+    out[0] = np.bincount(i, minlength=m) + 1.0
+    for c in range(3):
+        out[1 + c] = np.bincount(i, weights=d[:, c], minlength=m)
+    for k, (a, b) in enumerate(_PRODUCTS):
+        out[4 + k] = np.bincount(i, weights=d[:, a] * d[:, b], minlength=m)
+    return out
+
+
+def _planes_from_sums(sums: np.ndarray, min_neighbors: int, min_spread_ratio: float):
+    """``(10, m)`` neighbourhood sums to (centroid offset ``(m, 3)``, normal ``(m, 3)``, status ``(m,)``)."""
+    n = sums[0]
+    mean = (sums[1:4] / n).T
+    status = np.full(n.size, 2, np.int8)
+    normal = np.full((n.size, 3), np.nan)
+    fit = np.flatnonzero(n >= min_neighbors)
+    if fit.size:
+        mu, Sf, nf = mean[fit].T, sums[4:10, fit], n[fit]
+        C = [Sf[k] / nf - mu[a] * mu[c] for k, (a, c) in enumerate(_PRODUCTS)]
+        _, lam_mid, lam_max, v = smallest_eigh3(*C)
+        with np.errstate(invalid="ignore"):
+            plane = (lam_mid > (min_spread_ratio ** 2) * lam_max) & np.isfinite(v).all(axis=1)
+        status[fit] = np.where(plane, 1, 3)
+        normal[fit] = v
+    return mean, normal, status
+
+
+@dataclass
+class ReferencePlanes:
+    """The least-squares plane of every reference point's radius neighbourhood.
+
+    Attributes:
+        mask: ``(H, W)`` bool, the reference points ``R``.
+        index: ``(N,)`` flat pixel indices of ``R`` (row-major, increasing).
+        points: ``(N, 3)`` reference points, metres.
+        neighbors: ``(N,)`` neighbourhood sizes (the point itself included).
+        centroid_offset: ``(N, 3)`` neighbourhood centroid minus point, metres.
+        normal: ``(N, 3)`` unit plane normals (NaN where excluded).
+        status: ``(N,)`` int8: 1 plane, 2 too few neighbours, 3 degenerate.
+        method: ``"grid"`` or ``"kdtree"``.
+    """
+
+    mask: np.ndarray
+    index: np.ndarray
+    points: np.ndarray
+    neighbors: np.ndarray
+    centroid_offset: np.ndarray
+    normal: np.ndarray
+    status: np.ndarray
+    method: str
+    radius_m: float
+    intrinsics: Intrinsics
+    grid_points: list[np.ndarray] | None = None   # the points in _Grid layout (grid method)
+    pixel_normals: np.ndarray | None = None        # normal_map of the reference, filled by frame_metrics
+
+
+def _resolve_method(method: str, intrinsics: Intrinsics) -> str:
+    if method not in PLANE_FIT_METHODS:
+        raise MetricInputError(f"plane-fit method must be one of {', '.join(PLANE_FIT_METHODS)}, got {method!r}")
+    if method == "auto":
+        return "kdtree" if intrinsics.has_distortion else "grid"
+    if method == "grid" and intrinsics.has_distortion:
+        raise MetricInputError("the grid plane-fit search needs distortion-free intrinsics; use method='kdtree'")
+    return method
+
+
+def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.ndarray | None = None,
+                         radius_m: float = 0.005, min_neighbors: int = 3, min_spread_ratio: float = 0.1,
+                         method: str = "auto", threads: int = 1) -> ReferencePlanes:
+    """Fit the plane of every reference point (first half of :func:`plane_fit_rmse`, reusable across methods).
+
+    Args:
+        ref: ``(H, W)`` reference depth, metres, NaN = none.
+        intrinsics: the LQ camera (its size must be ``(H, W)``).
+        roi: optional ``(H, W)`` bool region of interest.
+        radius_m, min_neighbors, min_spread_ratio: see :class:`MetricConfig`.
+        method: ``"grid"``, ``"kdtree"`` or ``"auto"`` (grid unless the intrinsics have distortion).
+        threads: threads for the grid strips and KD-tree queries.
+    """
+    MetricConfig(radius_m=radius_m, min_neighbors=min_neighbors, min_spread_ratio=min_spread_ratio)
+    if ref.ndim != 2 or intrinsics.shape != ref.shape:
+        raise MetricInputError(f"intrinsics are {intrinsics.width}x{intrinsics.height}, depth has shape {ref.shape}")
+    if roi is not None and roi.shape != ref.shape:
+        raise MetricInputError(f"ROI mask {roi.shape} must have the reference's shape {ref.shape}")
+    method = _resolve_method(method, intrinsics)
+    r = float(radius_m)
+    xn, yn, b = _rays(intrinsics)
+    R = reference_mask(ref, roi)
+    idx = np.flatnonzero(R)
+    z = ref.ravel()[idx].astype(np.float64)
+    pts = np.stack([xn.ravel()[idx] * z, yn.ravel()[idx] * z, z], axis=1)
+    if idx.size == 0:
+        return ReferencePlanes(R, idx, pts, np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 3)),
+                               np.zeros(0, np.int8), method, r, intrinsics, None)
+    mean = np.empty((idx.size, 3))
+    normal = np.empty((idx.size, 3))
+    status = np.empty(idx.size, np.int8)
+    count = np.empty(idx.size)
+    grid_points = None
+    if method == "grid":
+        G = _Grid(ref.shape)
+        X = grid_points = G.embed_points(ref, R, xn, yn)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zz = np.where(R, ref, 0.0).astype(np.float64)
+            bound = np.where(zz > r, b * r / (zz - r), 0.0) * (1.0 + 1e-9) + 1e-9
+            bound[R & (zz <= r)] = np.inf
+        fallback = bound >= _GRID_CAP + 1
+        bound[fallback] = 0.0                      # the KD-tree does these
+        parts = _run(lambda v0, v1: _strip_sums(G, X, bound, r * r, v0, v1), G.strips, threads)
+        acc = np.zeros((10, G.size + G.Wp + 2))
+        for (v0, _), part in zip(G.strips, parts):  # halo rows overlap the next strip: add in order
+            s0 = G.start(v0)
+            acc[:, s0:s0 + part.shape[1]] += part
+        fi = G.flat_index(idx)
+        bounds = np.searchsorted(idx, [v0 * G.W for v0, _ in G.strips] + [G.H * G.W])
+
+        def planes_of_strip(a, e):
+            sums = acc[:, fi[a:e]]
+            mean[a:e], normal[a:e], status[a:e] = _planes_from_sums(sums, min_neighbors, min_spread_ratio)
+            count[a:e] = sums[0]
+
+        _run(planes_of_strip, list(zip(bounds[:-1], bounds[1:])), threads)
+        fb_pos = np.flatnonzero(fallback.ravel()[idx])
+        if fb_pos.size:   # points so close to the camera that the window cap is too small
+            i, j = _ball_pairs(cKDTree(pts), pts[fb_pos], r, fb_pos)
+            sums = _neighbour_sums_pairs(pts, fb_pos, i, j)
+            mean[fb_pos], normal[fb_pos], status[fb_pos] = _planes_from_sums(sums, min_neighbors, min_spread_ratio)
+            count[fb_pos] = sums[0]
+    else:
+        pairs = cKDTree(pts).query_pairs(r, output_type="ndarray")
+        i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+        j = np.concatenate([pairs[:, 1], pairs[:, 0]])
+        sums = _neighbour_sums_pairs(pts, np.arange(len(pts)), i, j)
+        mean, normal, status = _planes_from_sums(sums, min_neighbors, min_spread_ratio)
+        count = sums[0]
+    return ReferencePlanes(R, idx, pts, count.astype(np.int32), mean, normal, status, method, r, intrinsics,
+                           grid_points)
+
+
+def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.ndarray | None = None,
+                   radius_m: float = 0.005, min_neighbors: int = 3, min_spread_ratio: float = 0.1,
+                   method: str = "auto", planes: ReferencePlanes | None = None, threads: int = 1) -> PlaneFitResult:
+    """DDD's plane-fit RMSE of ``pred`` against ``ref`` (see the module docstring).
+
+    Args:
+        pred, ref: ``(H, W)`` depth in metres, NaN = none.
+        intrinsics: the LQ camera both depths live in (its size must be ``(H, W)``).
+        roi: optional ``(H, W)`` bool region of interest (applies to both clouds).
+        radius_m: neighbourhood radius in metres.
+        min_neighbors: fewest points (self included) for a plane.
+        min_spread_ratio: line-like neighbourhoods (second spread below this share of the first) are excluded.
+        method: ``"grid"`` (organised search, needs distortion-free intrinsics), ``"kdtree"`` or
+            ``"auto"`` (grid when possible). Both are exact and give the same result.
+        planes: :func:`fit_reference_planes` of this ``ref``/``roi`` to reuse (the radius,
+            thresholds and method above are then ignored).
+        threads: threads for the grid strips and KD-tree queries.
+
+    Returns:
+        A :class:`PlaneFitResult` (``rmse_mm`` and per-pixel distances, neighbour counts, status).
+    """
+    _check_pair(pred, ref, roi)
+    if planes is None:
+        planes = fit_reference_planes(ref, intrinsics, roi=roi, radius_m=radius_m, min_neighbors=min_neighbors,
+                                      min_spread_ratio=min_spread_ratio, method=method, threads=threads)
+    elif planes.intrinsics != intrinsics or planes.mask.shape != ref.shape:
+        raise MetricInputError("the reference planes were fitted for another camera or image size")
+    H, W = ref.shape
+    pred_valid = _finite_positive(pred)
+    if roi is not None:
+        pred_valid &= roi.astype(bool)
+    eval_mask = planes.mask & pred_valid
+    status = np.zeros((H, W), np.int8)
+    distance = np.full((H, W), np.nan)
+    neighbors = np.zeros((H, W), np.int32)
+    ev = np.flatnonzero(eval_mask)
+    if ev.size == 0:
+        return PlaneFitResult(float("nan"), distance, neighbors, status, planes.method)
+    pos = np.searchsorted(planes.index, ev)
+    st = planes.status[pos]
+    used = np.flatnonzero(st == 1)          # only planes need a closest point
+    ev_used, pos_used = ev[used], pos[used]
+    p_used = planes.points[pos_used]
+    xn, yn, b = _rays(intrinsics)
+    q = np.empty((used.size, 3))
+    todo = np.arange(used.size)
+    if planes.method == "grid" and used.size:
+        G = _Grid(ref.shape)
+        Xq = G.embed_points(pred, pred_valid, xn, yn)
+        fp = G.flat_index(ev_used)
+        bounds = np.searchsorted(ev_used, [v0 * G.W for v0, _ in G.strips] + [G.H * G.W])
+        bu = b.ravel()[ev_used]
+        todo_parts = []
+
+        def closest_of_strip(v0, v1, a, e):
+            qi, still_open = _strip_closest(G, planes.grid_points, Xq, fp[a:e], p_used[a:e, 2], bu[a:e], v0, v1)
+            for c in range(3):
+                q[a:e, c] = Xq[c][qi]
+            todo_parts.append(a + np.flatnonzero(still_open))
+
+        _run(closest_of_strip, [(v0, v1, a, e) for (v0, v1), a, e in zip(G.strips, bounds[:-1], bounds[1:]) if e > a],
+             threads)
+        todo = np.sort(np.concatenate(todo_parts)) if todo_parts else todo[:0]
+    if todo.size:
+        qv = np.flatnonzero(pred_valid)
+        zq = pred.ravel()[qv].astype(np.float64)
+        tree = cKDTree(np.stack([xn.ravel()[qv] * zq, yn.ravel()[qv] * zq, zq], axis=1))
+        _, k = tree.query(p_used[todo], k=1, workers=threads)
+        q[todo] = tree.data[k]
+    dist = np.abs(np.einsum("ij,ij->i", planes.normal[pos_used], q - p_used - planes.centroid_offset[pos_used]))
+    status.ravel()[ev] = st
+    neighbors.ravel()[ev] = planes.neighbors[pos]
+    distance.ravel()[ev_used] = dist
+    rmse = float(np.sqrt(np.mean(dist ** 2)) * 1000.0) if dist.size else float("nan")
+    return PlaneFitResult(rmse, distance, neighbors, status, planes.method)
+
+
+# --------------------------------------------------------------------------------- one frame
+def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.ndarray | None = None,
+                  config: MetricConfig = MetricConfig(), planes: ReferencePlanes | None = None,
+                  plane_fit_method: str = "auto") -> tuple[dict[str, float], list[dict[str, float]]]:
+    """Every metric of one frame against one reference.
+
+    Args:
+        pred, ref: ``(H, W)`` depth in metres, NaN = none.
+        intrinsics: the LQ camera.
+        roi: optional ``(H, W)`` bool region of interest.
+        config: metric parameters.
+        planes: :func:`fit_reference_planes` of ``ref``/``roi`` with ``config`` (reused across methods).
+        plane_fit_method: ``"auto"``, ``"grid"`` or ``"kdtree"`` (equal results).
+
+    Returns:
+        ``(metrics, bins)``: ``metrics`` maps every name of :data:`UNITS` to a float; ``bins`` lists
+        ``{"bin_lo_m", "bin_hi_m", <every name of BINNED>}`` for the reference-depth bins of width
+        ``config.depth_bin_m`` that hold at least one reference pixel.
+    """
+    _check_pair(pred, ref, roi)
+    if planes is None:
+        planes = fit_reference_planes(ref, intrinsics, roi=roi, radius_m=config.radius_m,
+                                      min_neighbors=config.min_neighbors, min_spread_ratio=config.min_spread_ratio,
+                                      method=plane_fit_method)
+    R = planes.mask
+    M = R & _finite_positive(pred)
+    out = {"n_reference": float(np.count_nonzero(R))}
+    pe = pixel_errors(pred, ref, roi)
+    out["n_valid"] = float(pe.pop("n_valid"))
+    out["fill_rate"] = out["n_valid"] / out["n_reference"] if out["n_reference"] else float("nan")
+    out.update(pe)
+    pf = plane_fit_rmse(pred, ref, intrinsics, roi=roi, planes=planes)
+    out["plane_fit_rmse_mm"] = pf.rmse_mm
+    out["plane_fit_n"] = float(pf.n_used)
+    out["plane_fit_excluded_few"] = float(pf.n_excluded_few)
+    out["plane_fit_excluded_degenerate"] = float(pf.n_excluded_degenerate)
+    out["plane_fit_excluded"] = out["plane_fit_excluded_few"] + out["plane_fit_excluded_degenerate"]
+    out["plane_fit_neighbors_median"] = float(np.median(pf.neighbors[M])) if M.any() else float("nan")
+    if planes.pixel_normals is None:
+        planes.pixel_normals = normal_map(ref, intrinsics)
+    out["normal_angle_deg"] = normal_angle_deg(pred, ref, intrinsics, roi, ref_normals=planes.pixel_normals)
+
+    bins: list[dict[str, float]] = []
+    if R.any():
+        w = config.depth_bin_m
+        b_ref = np.floor(ref[R].astype(np.float64) / w).astype(np.int64)
+        lo = int(b_ref.min())
+        present = np.flatnonzero(np.bincount(b_ref - lo)) + lo
+        b = np.floor(ref[M].astype(np.float64) / w).astype(np.int64) - lo
+        nb = len(np.bincount(b_ref - lo))
+        e = (pred[M].astype(np.float64) - ref[M].astype(np.float64)) * 1000.0
+        st, dist = pf.status[M], pf.distance_m[M] * 1000.0
+        used = st == 1
+        n_valid = np.bincount(b, minlength=nb).astype(np.float64)
+        abs_sum = np.bincount(b, weights=np.abs(e), minlength=nb)
+        sq_sum = np.bincount(b, weights=e * e, minlength=nb)
+        pf_n = np.bincount(b[used], minlength=nb).astype(np.float64)
+        pf_sq = np.bincount(b[used], weights=dist[used] ** 2, minlength=nb)
+        pf_ex = np.bincount(b[st >= 2], minlength=nb).astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mae, rmse, pf_rmse = abs_sum / n_valid, np.sqrt(sq_sum / n_valid), np.sqrt(pf_sq / pf_n)
+        for k in present - lo:
+            bins.append({"bin_lo_m": round((k + lo) * w, 9), "bin_hi_m": round((k + lo + 1) * w, 9),
+                         "n_valid": float(n_valid[k]), "mae_mm": float(mae[k]), "rmse_mm": float(rmse[k]),
+                         "plane_fit_n": float(pf_n[k]), "plane_fit_rmse_mm": float(pf_rmse[k]),
+                         "plane_fit_excluded": float(pf_ex[k])})
+    return out, bins

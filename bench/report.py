@@ -1,0 +1,445 @@
+"""The leaderboard: Markdown and a self-contained HTML page, rebuilt from the results table alone.
+
+:func:`write_report` reads ``RESULTS/results.parquet`` (and, for the qualitative figure only, the
+small previews in ``RESULTS/previews/``) and writes ``leaderboard.md``, ``leaderboard.html`` (images
+inlined as base64, no external resources) and ``figures/*.png`` into the results folder. The report
+is derived data: it is replaced on every run or ``depthbench bench report``.
+
+Summary numbers are means over frames of the per-frame metric (every frame of every dataset
+weighs the same) with 95 % percentile bootstrap intervals: frames are resampled with replacement
+(2000 resamples, seed 0), the same resamples for every method and metric (paired).
+"""
+from __future__ import annotations
+
+import base64
+import html
+import warnings
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench import plots
+from bench import results as R
+from bench.metrics import BINNED
+from depthbench.fsutil import atomic_write_text, staged_directory
+
+#: Table I of the seed report: column order and labels; names are matched after lower-casing and
+#: removing non-alphanumerics, with the aliases of the registered implementations.
+TABLE_I = (
+    ("raw", "Raw", ("raw",)),
+    ("bf", "BF", ("bf", "bilateral", "bilateralfilter")),
+    ("jbf", "JBF", ("jbf", "jointbilateral", "jointbilateralfilter")),
+    ("rgf", "RGF", ("rgf", "rollingguidance", "rollingguidancefilter")),
+    ("ddrnet", "DDRNet", ("ddrnet",)),
+    ("ddd", "DDD", ("ddd", "deepdepthdenoising")),
+    ("ssdd_unet", "SSDD UNet", ("ssddunet", "ssdd")),
+    ("ssdd_lstm", "SSDD LSTM", ("ssddlstm", "ssddlstmunet")),
+)
+
+#: The published numbers of the seed report's Table I (other data, other sensors; not comparable).
+PUBLISHED = (
+    {"label": "DDD [4] (Sterzentsenko et al.): RMSE (mm) of the plane fit, their 70-pair evaluation set",
+     "metric": "plane_fit_rmse_mm",
+     "values": {"bf": 73.25, "rgf": 81.35, "ddrnet": 239.06, "ddd": 58.95}},
+    {"label": "SSDD [5] (Shabanov et al.): \"MSE (mm)\" as printed, their test sequences",
+     "metric": "mse_mm2",
+     "values": {"raw": 57.22, "bf": 56.39, "rgf": 49.49, "ddrnet": 57.08, "ddd": 84.07, "ssdd_unet": 31.61,
+                "ssdd_lstm": 21.02}},
+)
+PUBLISHED_NOTE = ("Published numbers of the seed report's Table I, on other data with other sensors and other "
+                  "error definitions: shown for orientation only, not comparable with the rows above. DDD gives no "
+                  "raw-input error; SSDD prints its error as \"MSE (mm)\", a unit that fits neither MSE (mm²) nor "
+                  "RMSE exactly.")
+
+SUMMARY_METRICS = {
+    "mse_mm2": "MSE (mm²)", "rmse_mm": "RMSE (mm)", "mae_mm": "MAE (mm)",
+    "plane_fit_rmse_mm": "plane-fit RMSE (mm)", "fill_rate": "fill rate (%)", "normal_angle_deg": "normal angle (°)",
+}
+SEQUENCE_METRICS = ("rmse_mm", "mae_mm", "plane_fit_rmse_mm", "fill_rate")
+HQ_SENSOR = "hq_sensor"
+
+
+@dataclass
+class ReportPaths:
+    """Files written by :func:`write_report`."""
+
+    markdown: Path
+    html: Path
+    figures: list[Path] = field(default_factory=list)
+
+    def moved(self, src: Path, dst: Path) -> "ReportPaths":
+        """The same files after the folder ``src`` was renamed ``dst``."""
+        def mv(p: Path) -> Path:
+            return Path(dst) / Path(p).relative_to(src)
+        return ReportPaths(mv(self.markdown), mv(self.html), [mv(p) for p in self.figures])
+
+
+# ----------------------------------------------------------------------------------- columns
+def _norm(name: str) -> str:
+    return re.sub(r"[^a-z0-9]", "", name.lower())
+
+
+def table_i_slot(name: str) -> int | None:
+    """Position of a method name in Table I's column order, or None."""
+    n = _norm(name)
+    for k, (_, _, aliases) in enumerate(TABLE_I):
+        if n in aliases:
+            return k
+    return None
+
+
+def method_labels(df: pd.DataFrame, *, include_hq_sensor: bool = False) -> dict[str, str]:
+    """Method key -> column label, in Table I order, other methods after them by name, HQ sensor last."""
+    keys = df[["method", "method_key", "method_version"]].drop_duplicates()
+    if not include_hq_sensor:
+        keys = keys[keys["method"] != HQ_SENSOR]
+    counts = keys["method"].value_counts()
+
+    def sort_key(r):
+        slot = table_i_slot(r.method)
+        return (2 if r.method == HQ_SENSOR else 0 if slot is not None else 1, slot or 0, r.method, r.method_key)
+
+    out = {}
+    for r in sorted(keys.itertuples(), key=sort_key):
+        slot = table_i_slot(r.method)
+        label = "HQ sensor" if r.method == HQ_SENSOR else TABLE_I[slot][1] if slot is not None else r.method
+        if counts[r.method] > 1:
+            label += f" v{r.method_version}"
+        out[r.method_key] = label
+    return out
+
+
+# ----------------------------------------------------------------------------------- statistics
+def frame_values(df: pd.DataFrame, reference: str) -> pd.DataFrame:
+    """Frame-level rows of one reference as a wide table: index (dataset_checksum, frame), columns (metric, method_key)."""
+    rows = df[(df["reference"] == reference) & df["bin_lo_m"].isna()]
+    v = rows.set_index(["dataset_checksum", "frame", "metric", "method_key"])["value"]
+    wide = v[~v.index.duplicated()].unstack(["metric", "method_key"])
+    return wide.sort_index().sort_index(axis=1)
+
+
+def bootstrap_summary(wide: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0, level: float = 0.95) -> pd.DataFrame:
+    """Mean over frames and a percentile bootstrap interval for every column of ``wide``.
+
+    Frames (rows) are resampled with replacement ``n_boot`` times with ``numpy.random.default_rng(seed)``;
+    the same resamples serve every column (a paired bootstrap). NaN values are left out of the
+    means. Returns a frame indexed like ``wide.columns`` with ``mean, lo, hi, n_frames``.
+    """
+    F = wide.to_numpy(dtype=np.float64)
+    n = F.shape[0]
+    valid = np.isfinite(F)
+    Z = np.where(valid, F, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = Z.sum(axis=0) / valid.sum(axis=0)
+    if n == 0:
+        lo = hi = mean
+    else:
+        counts = np.random.default_rng(seed).multinomial(n, np.full(n, 1.0 / n), size=n_boot).astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            boot = (counts @ Z) / (counts @ valid)
+        a = (1.0 - level) / 2.0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN columns give NaN intervals
+            lo = np.nanquantile(boot, a, axis=0)
+            hi = np.nanquantile(boot, 1.0 - a, axis=0)
+    return pd.DataFrame({"mean": mean, "lo": lo, "hi": hi, "n_frames": valid.sum(axis=0)}, index=wide.columns)
+
+
+def depth_curves(df: pd.DataFrame, reference: str) -> pd.DataFrame:
+    """Binned rows pooled over frames: per (method key, depth bin) MAE, plane-fit RMSE, excluded share."""
+    b = df[(df["reference"] == reference) & df["bin_lo_m"].notna()]
+    if b.empty:
+        return pd.DataFrame(columns=["method_key", "depth_m", "mae_mm", "plane_fit_rmse_mm", "excluded_share", "n_valid"])
+    w = b.set_index(["method_key", "dataset_checksum", "frame", "bin_lo_m", "bin_hi_m", "metric"])["value"]
+    w = w[~w.index.duplicated()].unstack("metric").reindex(columns=list(BINNED)).reset_index()
+    w["abs_sum"] = np.nan_to_num(w["mae_mm"]) * w["n_valid"]
+    w["pf_sq"] = np.nan_to_num(w["plane_fit_rmse_mm"]) ** 2 * w["plane_fit_n"]
+    g = w.groupby(["method_key", "bin_lo_m", "bin_hi_m"], as_index=False)[
+        ["n_valid", "abs_sum", "plane_fit_n", "pf_sq", "plane_fit_excluded"]].sum()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g["mae_mm"] = np.where(g["n_valid"] > 0, g["abs_sum"] / g["n_valid"], np.nan)
+        g["plane_fit_rmse_mm"] = np.where(g["plane_fit_n"] > 0, np.sqrt(g["pf_sq"] / g["plane_fit_n"]), np.nan)
+        tot = g["plane_fit_n"] + g["plane_fit_excluded"]
+        g["excluded_share"] = np.where(tot > 0, g["plane_fit_excluded"] / tot, np.nan)
+    g["depth_m"] = (g["bin_lo_m"] + g["bin_hi_m"]) / 2
+    return g[["method_key", "depth_m", "mae_mm", "plane_fit_rmse_mm", "excluded_share", "n_valid"]]
+
+
+# ----------------------------------------------------------------------------------- formatting
+def _fmt(x: float, digits: int = 2) -> str:
+    if x is None or not np.isfinite(x):
+        return "–"
+    return f"{x:.{digits}f}"
+
+
+def _cell(s: pd.DataFrame, metric: str, key: str, *, ci: bool = True) -> str:
+    if (metric, key) not in s.index:
+        return "–"
+    r = s.loc[(metric, key)]
+    scale = 100.0 if metric == "fill_rate" else 1.0
+    m, lo, hi = r["mean"] * scale, r["lo"] * scale, r["hi"] * scale
+    if not np.isfinite(m):
+        return "–"
+    return f"{_fmt(m)} [{_fmt(lo)}, {_fmt(hi)}]" if ci else _fmt(m)
+
+
+class _Doc:
+    """Builds the Markdown and the HTML side by side."""
+
+    def __init__(self) -> None:
+        self.md: list[str] = []
+        self.html: list[str] = []
+
+    def heading(self, text: str, level: int = 2) -> None:
+        self.md.append(f"{'#' * level} {text}\n")
+        self.html.append(f"<h{level}>{html.escape(text)}</h{level}>")
+
+    def para(self, text: str, *, cls: str | None = None) -> None:
+        self.md.append(text + "\n")
+        c = f' class="{cls}"' if cls else ""
+        self.html.append(f"<p{c}>{_inline_html(text)}</p>")
+
+    def table(self, header: list[str], rows: list[list[str]], *, row_classes: list[str] | None = None) -> None:
+        self.md.append("| " + " | ".join(header) + " |")
+        self.md.append("|" + "|".join([":--"] + ["--:"] * (len(header) - 1)) + "|")
+        for r in rows:
+            self.md.append("| " + " | ".join(x.replace("|", "\\|") for x in r) + " |")
+        self.md.append("")
+        h = ["<table><thead><tr>" + "".join(f"<th>{html.escape(x)}</th>" for x in header) + "</tr></thead><tbody>"]
+        for k, r in enumerate(rows):
+            c = f' class="{row_classes[k]}"' if row_classes and row_classes[k] else ""
+            h.append(f"<tr{c}>" + "".join(f"<td>{_inline_html(x)}</td>" for x in r) + "</tr>")
+        h.append("</tbody></table>")
+        self.html.append("".join(h))
+
+    def figure(self, rel: str, png: bytes, alt: str) -> None:
+        self.md.append(f"![{alt}]({rel})\n")
+        b64 = base64.b64encode(png).decode()
+        self.html.append(f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
+                         f"<figcaption>{html.escape(alt)}</figcaption></figure>")
+
+
+def _inline_html(text: str) -> str:
+    t = html.escape(text)
+    t = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", t)
+    t = re.sub(r"`(.+?)`", r"<code>\1</code>", t)
+    t = re.sub(r"(?<![\w*])\*(?!\s)(.+?)(?<!\s)\*(?![\w*])", r"<em>\1</em>", t)
+    return t
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;max-width:1250px;color:#222;padding:0 1em}
+h1{font-size:1.6em}h2{margin-top:1.8em;border-bottom:1px solid #ddd;padding-bottom:.2em}
+table{border-collapse:collapse;margin:.6em 0 1.2em;font-size:.88em}
+th,td{border:1px solid #ccc;padding:.3em .55em;text-align:right;white-space:nowrap}
+th:first-child,td:first-child{text-align:left;white-space:normal;max-width:26em}
+thead th{background:#f0f3f7}
+tr.published td{background:#fbf7ea;color:#6b5d35;font-style:italic}
+tr.separator td{background:#f6f6f6;color:#555;font-weight:600;text-align:left}
+figure{margin:1em 0}figure img{max-width:100%;border:1px solid #eee}
+figcaption{font-size:.85em;color:#555}
+p.note{font-size:.9em;color:#444;background:#f7f7f7;padding:.5em .8em;border-left:3px solid #bbb}
+code{background:#f3f3f3;padding:0 .2em}
+"""
+
+
+# ----------------------------------------------------------------------------------- report
+def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int, seed: int,
+                     figures: dict[str, bytes]) -> None:
+    truth = reference == "truth"
+    labels = method_labels(df[df["reference"] == reference], include_hq_sensor=truth)
+    if not labels:
+        return
+    wide = frame_values(df, reference)
+    s = bootstrap_summary(wide, n_boot=n_boot, seed=seed)
+    n_frames = len(wide)
+    doc.heading("Summary against the simulator's truth" if truth else "Summary against the HQ reference")
+    header = ["metric"] + list(labels.values())
+    rows = [[name] + [_cell(s, metric, k) for k in labels] for metric, name in SUMMARY_METRICS.items()]
+    classes = [""] * len(rows)
+    if not truth:
+        slots = {table_i_slot(df.loc[df["method_key"] == k, "method"].iloc[0]): k for k in labels}
+        rows.append(["Published (seed report Table I), other data: not comparable"] + [""] * len(labels))
+        classes.append("separator")
+        for pub in PUBLISHED:
+            cells = []
+            for k in labels:
+                slot = table_i_slot(df.loc[df["method_key"] == k, "method"].iloc[0])
+                name = TABLE_I[slot][0] if slot is not None else None
+                v = pub["values"].get(name)
+                cells.append(_fmt(v) if v is not None and slots.get(slot) == k else "")
+            rows.append([pub["label"]] + cells)
+            classes.append("published")
+    doc.table(header, rows, row_classes=classes)
+    doc.para(f"Mean over {n_frames} frames of the per-frame value, with its 95 % bootstrap interval "
+             f"({n_boot} resamples of the frames, seed {seed}, the same resamples for every column). "
+             "Errors are over pixels valid in both the method's output and the reference, inside the ROI; "
+             "the fill rate is the share of reference pixels the method leaves valid.", cls="note")
+    if truth:
+        doc.para("The **HQ sensor** column scores the warped HQ depth itself against the truth: the part of every "
+                 "method's error against the HQ reference that is the reference's own error.", cls="note")
+    else:
+        doc.para(PUBLISHED_NOTE, cls="note")
+    name = f"summary_{reference}.png"
+    figures[name] = plots.summary_bars(s, labels, metrics={"rmse_mm": "RMSE (mm)", "mae_mm": "MAE (mm)",
+                                                           "plane_fit_rmse_mm": "plane-fit RMSE (mm)"},
+                                       title=f"against the {'truth' if truth else 'HQ reference'} (95 % bootstrap intervals)")
+    doc.figure(f"figures/{name}", figures[name], f"Summary against the {'truth' if truth else 'HQ reference'}")
+
+
+def _sequence_section(doc: _Doc, df: pd.DataFrame) -> None:
+    hq = df[(df["reference"] == "hq") & df["bin_lo_m"].isna() & df["metric"].isin(SEQUENCE_METRICS)]
+    labels = method_labels(hq)
+    doc.heading("Per sequence (against the HQ reference)")
+    for seq, part in hq.groupby("sequence", sort=True):
+        names = sorted(part["dataset"].unique())
+        n = part[["dataset_checksum", "frame"]].drop_duplicates().shape[0]
+        doc.heading(f"{seq} ({', '.join(names)}; {n} frames)", level=3)
+        means = part.groupby(["metric", "method_key"])["value"].mean()
+        rows = []
+        for metric in SEQUENCE_METRICS:
+            scale = 100.0 if metric == "fill_rate" else 1.0
+            rows.append([SUMMARY_METRICS[metric]] + [_fmt(means.get((metric, k), np.nan) * scale) for k in labels])
+        doc.table(["metric"] + list(labels.values()), rows)
+
+
+def _coverage_section(doc: _Doc, df: pd.DataFrame, config: dict | None) -> None:
+    f = df[df["bin_lo_m"].isna() & df["metric"].isin(["plane_fit_n", "plane_fit_excluded_few",
+                                                       "plane_fit_excluded_degenerate", "plane_fit_neighbors_median",
+                                                       "n_reference"])]
+    labels = method_labels(df, include_hq_sensor=True)
+    first = next(iter(labels), None)
+    radius = f"{config['radius_m'] * 1000:g} mm" if config else "the configured radius"
+    doc.heading("Plane-fit coverage")
+    doc.para(f"The plane fit uses every reference point within {radius} of a point. One pixel of a 640x480 image "
+             "spans z/f metres (about 1.9 mm at 1 m, 3.7 mm at 2 m, 5.6 mm at 3 m for f = 537 px), so a 5 mm ball "
+             "holds about 21 points at 1 m, 5 at 2 m and only the point itself beyond about 2.7 m: there the "
+             "plane is undefined and the point is excluded (counted below, and plotted against depth). The "
+             "distance is taken to the closest denoised point, so noise much larger than a pixel is under-estimated.",
+             cls="note")
+    rows = []
+    for (ds, ref), part in f[f["method_key"] == first].groupby(["dataset", "reference"], sort=True):
+        v = part.groupby("metric")["value"]
+        used, few, deg = v.sum().get("plane_fit_n", 0), v.sum().get("plane_fit_excluded_few", 0), \
+            v.sum().get("plane_fit_excluded_degenerate", 0)
+        tot = used + few + deg
+        rows.append([ds, ref, _fmt(v.mean().get("n_reference", np.nan), 0),
+                     _fmt(v.median().get("plane_fit_neighbors_median", np.nan), 1),
+                     _fmt(100 * used / tot if tot else np.nan, 1), _fmt(100 * few / tot if tot else np.nan, 1),
+                     _fmt(100 * deg / tot if tot else np.nan, 1)])
+    if rows:
+        doc.table(["dataset", "reference", "reference pixels / frame", "median neighbours", "used (%)",
+                   "too few neighbours (%)", "line-like (%)"], rows)
+        doc.para(f"Scored points of the {labels[first]} column; other columns differ only where a method leaves "
+                 "pixels empty.", cls="note")
+
+
+def write_report(results_dir: str | Path, *, table: pd.DataFrame | None = None, n_boot: int = 2000, seed: int = 0,
+                 max_qualitative: int = 4) -> ReportPaths:
+    """Write ``leaderboard.md``, ``leaderboard.html`` and ``figures/`` into ``results_dir``.
+
+    Args:
+        results_dir: a results folder (its ``results.parquet`` is read unless ``table`` is given).
+        table: the results table, when the caller has it.
+        n_boot: bootstrap resamples; ``seed``: their random seed.
+        max_qualitative: datasets shown in the qualitative figure (the first ones by name).
+
+    Returns:
+        :class:`ReportPaths`.
+    """
+    root = Path(results_dir)
+    df = R.load_results(root) if table is None else table
+    if df.empty:
+        raise R.ResultsFormatError(f"{root}: the results table has no rows")
+    try:
+        meta = R.read_manifest(root)
+    except R.ResultsFormatError:
+        meta = None
+    config = meta["metrics"] if meta else None
+    doc = _Doc()
+    figures: dict[str, bytes] = {}
+    datasets = df[["dataset", "dataset_checksum", "sequence"]].drop_duplicates().sort_values("dataset")
+    n_frames = df[["dataset_checksum", "frame"]].drop_duplicates().shape[0]
+    labels_all = method_labels(df)
+    doc.heading("depthbench leaderboard", 1)
+    cfg_text = (f"plane-fit radius {config['radius_m'] * 1000:g} mm, at least {config['min_neighbors']} neighbours, "
+                f"depth bins of {config['depth_bin_m']:g} m" if config else "metric parameters: see results.json")
+    doc.para(f"{len(datasets)} dataset(s), {n_frames} frames, {len(labels_all)} method(s); {len(df)} result rows "
+             f"(schema version {R.SCHEMA_VERSION}); {cfg_text}. Rebuilt from `results.parquet` by "
+             "`depthbench bench report`.")
+    _summary_section(doc, df, "hq", n_boot=n_boot, seed=seed, figures=figures)
+    if (df["reference"] == "truth").any():
+        _summary_section(doc, df, "truth", n_boot=n_boot, seed=seed, figures=figures)
+    _sequence_section(doc, df)
+
+    doc.heading("Error against depth")
+    for ref in ("hq", "truth"):
+        curves = depth_curves(df, ref)
+        if curves.empty:
+            continue
+        labels = method_labels(df[df["reference"] == ref], include_hq_sensor=(ref == "truth"))
+        name = f"error_vs_depth_{ref}.png"
+        title = f"against the {'HQ reference' if ref == 'hq' else 'truth'}, pooled over frames, by reference depth"
+        figures[name] = plots.error_vs_depth(curves, labels, title=title)
+        doc.figure(f"figures/{name}", figures[name], f"Error against depth ({'HQ reference' if ref == 'hq' else 'truth'})")
+
+    doc.heading("Qualitative comparison")
+    shown = 0
+    for r in datasets.itertuples():
+        if shown >= max_qualitative:
+            break
+        inputs = R.load_npz(R.preview_path(root, r.dataset_checksum))
+        if inputs is None:
+            continue
+        keys = df.loc[(df["dataset_checksum"] == r.dataset_checksum), "method_key"].unique()
+        denoised = {}
+        for k in keys:
+            p = R.load_npz(R.preview_path(root, r.dataset_checksum, k))
+            if p is not None:
+                denoised[str(p["method_key"])] = p["depth"]
+        labels = {k: v for k, v in labels_all.items() if k in denoised}
+        name = f"qualitative_{r.dataset_checksum[:16]}.png"
+        figures[name] = plots.qualitative(inputs, denoised, labels,
+                                          title=f"{r.dataset} (sequence {r.sequence}), frame {int(inputs['frame'])}")
+        doc.figure(f"figures/{name}", figures[name], f"{r.dataset}, frame {int(inputs['frame'])}: depth and shaded normals")
+        shown += 1
+    if shown == 0:
+        doc.para("No depth previews in this results folder (the table alone cannot draw depth images).", cls="note")
+
+    _coverage_section(doc, df, config)
+
+    doc.heading("Methods")
+    mrows = []
+    for k, label in method_labels(df, include_hq_sensor=True).items():
+        m = df.loc[df["method_key"] == k].iloc[0]
+        mrows.append([label, f"`{k}`", str(m["method_version"])])
+    doc.table(["column", "method key (name@version(parameters))", "version"], mrows)
+    doc.heading("Datasets")
+    drows = []
+    for r in datasets.itertuples():
+        n = df.loc[df["dataset_checksum"] == r.dataset_checksum, "frame"].nunique()
+        drows.append([r.dataset, r.sequence, str(n), f"`{r.dataset_checksum[:16]}`"])
+    doc.table(["dataset", "sequence", "frames", "checksum"], drows)
+    doc.heading("Definitions")
+    doc.para("**MSE / RMSE / MAE**: over pixels valid in both the output and the reference, inside the ROI, in "
+             "millimetres (SSDD's comparison). **Plane-fit RMSE** (DDD): for each reference point, the least-squares "
+             "plane through all reference points within the radius; the distance from that plane to the closest "
+             "point of the denoised cloud; RMSE over the points (too few neighbours or line-like neighbourhoods are "
+             "excluded and counted). **Fill rate**: share of reference-valid ROI pixels the method leaves valid. "
+             "**Normal angle**: mean angle between central-difference normals of output and reference.")
+
+    figs_dir = root / "figures"
+    written = []
+    with staged_directory(figs_dir, force=True, what="figures folder") as tmp:
+        for name, png in figures.items():
+            (tmp / name).write_bytes(png)
+            written.append(figs_dir / name)
+    md_path, html_path = root / "leaderboard.md", root / "leaderboard.html"
+    atomic_write_text(md_path, "\n".join(doc.md))
+    page = ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>depthbench leaderboard</title>"
+            f"<style>{_CSS}</style></head><body>" + "\n".join(doc.html) + "</body></html>\n")
+    atomic_write_text(html_path, page)
+    return ReportPaths(md_path, html_path, written)

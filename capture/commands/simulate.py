@@ -41,8 +41,10 @@ def add_parser(sub) -> None:
                    help="multiply every image size, e.g. 0.25 for quick runs (default: %(default)s)")
     p.add_argument("--lq-fps", type=float, default=30.0, help="LQ frame rate (default: %(default)s)")
     p.add_argument("--hq-fps", type=float, default=30.0, help="HQ frame rate (default: %(default)s)")
-    p.add_argument("--color-format", choices=("png", "jpeg"), default="png",
-                   help="encoding of the colour streams (default: %(default)s)")
+    p.add_argument("--color-format", choices=("auto", "png", "jpeg"), default="auto",
+                   help="encoding of the colour streams; auto: PNG for LQ, JPEG for HQ as Azure Kinect records (default: %(default)s)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="rendering processes (default: one per core, at most 4; output does not depend on it)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
     p.set_defaults(func=run)
@@ -53,7 +55,7 @@ def run(args) -> int:
     r = simulate(args.out, rig=args.rig, scene=args.scene, seconds=args.seconds, seed=args.seed, effects=args.effect,
                  undeclared=args.undeclared, force=args.force, time_shift_us=shift, static=args.static,
                  scale=args.scale, lq_fps=args.lq_fps, hq_fps=args.hq_fps, color_encoding=args.color_format,
-                 progress=not args.no_progress)
+                 progress=not args.no_progress, workers=args.workers)
     frames = ", ".join(f"{s}: {n} frames ({r.dropped[s]} dropped)" for s, n in r.frames.items())
     print(f"wrote {r.root} ({r.rig}, {r.scene}, {r.seconds:g} s; {frames}) in {r.elapsed_s:.1f} s "
           f"[{r.scene_frames_per_s:.1f} frames of scene time/s]")

@@ -9,18 +9,15 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass, field
+import os
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-import cv2
-import numpy as np
-
-from capture.camera import Intrinsics, Transform
-from capture.session import encode_depth
+from capture.camera import Intrinsics
 from capture.sim.clocks import Clock, Schedule
 from capture.sim.rigs import Rig, SensorSpec
-from depthbench.fsutil import atomic_write_bytes, atomic_write_json, atomic_write_text, sha256_bytes
+from depthbench.fsutil import atomic_write_json, atomic_write_text, sha256_bytes
 
 TRUTH_FORMAT = "depthbench.truth"
 TRUTH_FORMAT_VERSION = "1.0"
@@ -44,9 +41,14 @@ class Plan:
     declared: bool
     clocks: dict[str, Clock]
     schedules: dict[str, Schedule]
-    color_encoding: str = "png"
+    color_encoding: str = "auto"
     name: str = ""
-    extra: dict = field(default_factory=dict)
+
+    def color_encoding_of(self, sensor: str) -> str:
+        """``auto``: PNG for the LQ/view sensors, JPEG for the HQ (Azure Kinect records MJPEG colour)."""
+        if self.color_encoding != "auto":
+            return self.color_encoding
+        return "jpeg" if self.rig.sensor(sensor).role == "hq" else "png"
 
     @property
     def time_shift_us(self) -> int:
@@ -63,7 +65,7 @@ def declared_intrinsics(plan: Plan, spec: SensorSpec, K: Intrinsics) -> Intrinsi
 def _stream(plan: Plan, spec: SensorSpec, kind: str) -> dict:
     K = declared_intrinsics(plan, spec, spec.depth if kind == "depth" else spec.color)
     d = {"type": kind, "width": K.width, "height": K.height, "fps": spec.fps,
-         "encoding": "png16" if kind == "depth" else plan.color_encoding, "intrinsics": K.to_dict(),
+         "encoding": "png16" if kind == "depth" else plan.color_encoding_of(spec.id), "intrinsics": K.to_dict(),
          "dropped_frames": int(len(plan.schedules[spec.id].dropped_frame_numbers))}
     if kind == "depth":
         d["depth_unit_m"] = spec.depth_unit_m
@@ -146,6 +148,15 @@ def _truth_sensor(s: SensorSpec) -> dict:
             "frames": f"{s.id}/frames.csv"}
 
 
+def write_file(root: Path, rel: str, data: bytes) -> None:
+    """Write ``root/rel`` through a temporary name and a rename (the folder exists)."""
+    path = root / rel
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "wb") as f:
+        f.write(data)
+    os.replace(tmp, path)
+
+
 class TruthWriter:
     """Writes ``truth/<sensor>/depth/<n>.png`` per frame, then the tables and ``truth.json``."""
 
@@ -156,16 +167,15 @@ class TruthWriter:
         for s in plan.rig.sensors:
             (self.root / s.id / "depth").mkdir(parents=True, exist_ok=True)
 
-    def add(self, sensor: str, i: int, depth_m: np.ndarray) -> None:
-        """Record frame ``i`` of ``sensor``'s schedule with its noise-free depth (metres, NaN = none)."""
+    def add(self, sensor: str, i: int, png: bytes) -> None:
+        """Record frame ``i`` of ``sensor``'s schedule with its noise-free depth as an encoded
+        uint16 PNG in :data:`TRUTH_DEPTH_UNIT_M` units."""
         s = self.plan.schedules[sensor]
         fn = int(s.frame_number[i])
-        ok, buf = cv2.imencode(".png", encode_depth(depth_m, TRUTH_DEPTH_UNIT_M), [cv2.IMWRITE_PNG_COMPRESSION, 1])
-        data = buf.tobytes()
         rel = f"{sensor}/depth/{fn:08d}.png"
-        atomic_write_bytes(self.root / rel, data)
+        write_file(self.root, rel, png)
         self.rows[sensor].append((fn, int(s.scene_time_us[i]), int(s.device_timestamp_us[i]),
-                                  int(s.host_timestamp_us[i]), int(s.host_jitter_us[i]), rel, sha256_bytes(data)))
+                                  int(s.host_timestamp_us[i]), int(s.host_jitter_us[i]), rel, sha256_bytes(png)))
 
     def close(self) -> None:
         for sensor, rows in self.rows.items():

@@ -1,35 +1,41 @@
 """Batched ray casting of a scene with Open3D's ``RaycastingScene`` (one cast per image).
 
-A :class:`Renderer` holds the scene's fixed triangles and rebuilds the Embree scene only
-when asked for a new scene time (building a scene of ~20 k triangles takes about a
-millisecond; the casts dominate). Viewing rays are computed once per camera
-(:func:`camera_rays`, distortion included) and reused for every frame, since the rigs are static.
+Depth convention: the ray of pixel ``(u, v)`` has direction ``(x, y, 1)`` in the camera frame
+(``(x, y)`` the undistorted normalised coordinates of the pixel), so Open3D's ``t_hit`` *is*
+the z-depth in metres.
 
-Depth convention: the ray of pixel ``(u, v)`` has direction ``(x, y, 1)`` in the camera frame,
-so Open3D's ``t_hit`` *is* the z-depth in metres.
+Speed: the rigs never move, so what a camera sees of the still parts of a scene (room,
+furniture) is cast and shaded once per camera (the *still layer*). Each frame then casts only
+the pixels whose rays can meet a moving part: the union of the image rectangles of every
+moving part's bounding box (computed in undistorted normalised coordinates, so it is
+conservative under lens distortion too). Those rays are cast against the whole scene, so the
+result is the same as casting every pixel (``tests/capture/test_sim_render.py`` checks it).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import open3d as o3d
 
 from capture.camera import Intrinsics, Transform
+from capture.sim.kernels import expose, shade_hits
 from capture.sim.scene import Scene
-from capture.sim.texture import luminance, shade, surface_color
+from capture.sim.texture import material_arrays, shade, surface_color
 
 BACKGROUND_RGB = 0.08  # colour of rays that hit nothing
 
+_BOX_CORNERS = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)])
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, eq=False)
 class CameraRays:
-    """Rays of one camera: ``rays`` ``(H, W, 6)`` float32 world origin+direction, and the
-    undistorted normalised image coordinates ``xy`` ``(H, W, 2)`` in the camera frame."""
+    """Rays of one (static) camera: ``rays`` ``(H*W, 6)`` float32 world origin+direction in
+    row-major pixel order, and the undistorted normalised image coordinates ``xy`` ``(H, W, 2)``."""
 
     intrinsics: Intrinsics
     T_world_cam: Transform
-    rays: o3d.core.Tensor
+    rays: np.ndarray
     xy: np.ndarray
 
 
@@ -38,65 +44,178 @@ def camera_rays(K: Intrinsics, T_world_cam: Transform) -> CameraRays:
     d_cam = K.ray_grid()  # (H, W, 3) with z = 1
     d_world = d_cam @ T_world_cam.R.T
     origin = np.broadcast_to(T_world_cam.t, d_world.shape)
-    rays = np.concatenate([origin, d_world], axis=-1).astype(np.float32)
-    return CameraRays(K, T_world_cam, o3d.core.Tensor(rays), d_cam[..., :2].astype(np.float32))
+    rays = np.concatenate([origin, d_world], axis=-1).astype(np.float32).reshape(-1, 6)
+    return CameraRays(K, T_world_cam, rays, d_cam[..., :2].astype(np.float32))
 
 
 @dataclass
 class Hits:
-    """What one camera sees: ``z`` ``(H, W)`` float32 metres (NaN = nothing), ``albedo`` and
-    ``shaded`` ``(H, W, 3)`` float32 RGB in [0, 1]."""
+    """What one camera sees, all ``(H, W)``: ``z`` float32 metres (NaN = nothing), the
+    luminance of the surface albedo and of the shaded colour (float32, [0, 1]), and the colour
+    image ``rgb`` ``(H, W, 3)`` uint8 with sensor noise."""
 
     z: np.ndarray
-    albedo: np.ndarray
-    shaded: np.ndarray
+    albedo_luminance: np.ndarray
+    shaded_luminance: np.ndarray
+    rgb: np.ndarray
+
+
+@dataclass
+class _Layer:
+    """Per-pixel shading buffers of one camera, flat: z, luminances (N,), colour (N, 3)."""
+
+    z: np.ndarray
+    lum_albedo: np.ndarray
+    lum_shaded: np.ndarray
+    rgb: np.ndarray
+    cast_pixels: int = field(default=0)
+
+    @classmethod
+    def empty(cls, n: int) -> "_Layer":
+        return cls(np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.float32),
+                   np.empty((n, 3), np.float32))
+
+    def copy(self) -> "_Layer":
+        return _Layer(self.z.copy(), self.lum_albedo.copy(), self.lum_shaded.copy(), self.rgb.copy())
 
 
 class Renderer:
-    """Casts camera rays into a :class:`Scene` at a given scene time."""
+    """Casts camera rays into a :class:`Scene` at a given scene time.
 
-    def __init__(self, scene: Scene, *, nthreads: int = 0) -> None:
+    ``nthreads``: Embree threads (0 = all cores). ``reuse_still=False`` casts every pixel every
+    frame (the reference the fast path is tested against).
+    """
+
+    def __init__(self, scene: Scene, *, nthreads: int = 0, reuse_still: bool = True) -> None:
         self.scene = scene
         self.nthreads = nthreads
+        self.reuse_still = reuse_still
         self._triangles = o3d.core.Tensor(scene.triangles)
+        self._params, self._tint = material_arrays(scene.materials)
         self._time: float | None = None
         self._rc: o3d.t.geometry.RaycastingScene | None = None
+        self._vertices: np.ndarray | None = None
+        self._still: dict[int, _Layer] = {}
+        self.last_cast_pixels = 0
+
+    # -- Embree scenes
+    def _build(self, vertices: np.ndarray, triangles: np.ndarray) -> o3d.t.geometry.RaycastingScene:
+        rc = o3d.t.geometry.RaycastingScene(nthreads=self.nthreads)
+        rc.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(triangles))
+        return rc
 
     def _scene_at(self, t_s: float) -> o3d.t.geometry.RaycastingScene:
         if self._rc is None or self._time != t_s:
-            rc = o3d.t.geometry.RaycastingScene(nthreads=self.nthreads)
-            rc.add_triangles(o3d.core.Tensor(self.scene.vertices_at(t_s)), self._triangles)
-            self._rc, self._time = rc, t_s
+            self._vertices = self.scene.vertices_at(t_s)
+            self._rc = o3d.t.geometry.RaycastingScene(nthreads=self.nthreads)
+            self._rc.add_triangles(o3d.core.Tensor(self._vertices), self._triangles)
+            self._time = t_s
         return self._rc
 
-    def cast(self, cam: CameraRays, t_s: float, *, color: bool = True) -> Hits:
-        """Cast ``cam``'s rays at scene time ``t_s`` seconds; texture the hits if ``color``."""
-        ans = self._scene_at(t_s).cast_rays(cam.rays, nthreads=self.nthreads)
-        t_hit = ans["t_hit"].numpy()
-        hit = np.isfinite(t_hit)
-        z = np.where(hit, t_hit, np.nan).astype(np.float32)
-        H, W = z.shape
-        albedo = np.full((H, W, 3), BACKGROUND_RGB, dtype=np.float32)
-        shaded = albedo.copy()
-        if color and hit.any():
-            prim = ans["primitive_ids"].numpy()[hit]
-            uv = ans["primitive_uvs"].numpy()[hit]
-            tri = self.scene.triangles[prim]
-            rest = self.scene.rest_vertices
-            p_local = ((1 - uv[:, :1] - uv[:, 1:]) * rest[tri[:, 0]] + uv[:, :1] * rest[tri[:, 1]]
-                       + uv[:, 1:] * rest[tri[:, 2]])
-            a = surface_color(p_local, self.scene.triangle_material[prim], self.scene.materials)
-            albedo[hit] = a
-            shaded[hit] = shade(a, ans["primitive_normals"].numpy()[hit])
-        return Hits(z, albedo, shaded)
+    def _cast_into(self, rc, rays: np.ndarray, idx: np.ndarray, layer: _Layer) -> None:
+        ans = {k: v.numpy() for k, v in rc.cast_rays(o3d.core.Tensor(rays), nthreads=self.nthreads).items()}
+        scene = self.scene
+        shade_hits(ans["t_hit"], ans["primitive_ids"], ans["primitive_uvs"], ans["primitive_normals"], idx,
+                   scene.triangles, scene.rest_vertices, scene.triangle_material, self._params, self._tint,
+                   np.float32(BACKGROUND_RGB), layer.z, layer.lum_albedo, layer.lum_shaded, layer.rgb)
+
+    def _still_layer(self, cam: CameraRays) -> _Layer:
+        key = id(cam)
+        if key not in self._still:
+            n = len(cam.rays)
+            layer = _Layer.empty(n)
+            s = self.scene
+            rc = self._build(s.vertices_at(0.0)[: s.n_still_vertices], s.triangles[: s.n_still_triangles])
+            self._cast_into(rc, cam.rays, np.arange(n, dtype=np.int64), layer)
+            self._still[key] = (cam, layer)  # keep cam alive so id() stays unique
+        return self._still[key][1]
+
+    # -- the image region moving parts can cover
+    def roi_indices(self, cam: CameraRays, t_s: float) -> np.ndarray:
+        """Flat indices of the pixels whose rays can meet a moving part at ``t_s`` (sorted)."""
+        self._scene_at(t_s)
+        bounds = self.scene.moving_part_bounds(self._vertices)
+        K = cam.intrinsics
+        mask = np.zeros(K.shape, dtype=bool)
+        for rect in _pixel_rects(bounds, cam):
+            if rect is None:
+                return np.arange(K.width * K.height, dtype=np.int64)
+            r0, r1, c0, c1 = rect
+            mask[r0:r1, c0:c1] = True
+        return np.flatnonzero(mask)
+
+    def cast(self, cam: CameraRays, t_s: float, *, noise_seed: int = 0, noise_dn: float = 0.0) -> Hits:
+        """Cast ``cam``'s rays at scene time ``t_s`` seconds; texture, shade and expose the hits."""
+        K = cam.intrinsics
+        n = K.width * K.height
+        rc = self._scene_at(t_s)
+        if self.reuse_still and self.scene.n_still_triangles > 0:
+            layer = self._still_layer(cam).copy()
+            idx = self.roi_indices(cam, t_s) if self.scene.n_still_triangles < len(self.scene.triangles) else \
+                np.zeros(0, np.int64)
+        else:
+            layer, idx = _Layer.empty(n), np.arange(n, dtype=np.int64)
+        if idx.size:
+            self._cast_into(rc, cam.rays[idx], idx, layer)
+        self.last_cast_pixels = int(idx.size)
+        rgb8 = np.empty((n, 3), np.uint8)
+        expose(layer.rgb, np.uint64(noise_seed), np.float32(noise_dn), rgb8)
+        H, W = K.shape
+        return Hits(layer.z.reshape(H, W), layer.lum_albedo.reshape(H, W), layer.lum_shaded.reshape(H, W),
+                    rgb8.reshape(H, W, 3))
+
+    def cast_raw(self, cam: CameraRays, t_s: float) -> dict[str, np.ndarray]:
+        """Open3D's full answer for every ray of ``cam`` at ``t_s`` (arrays shaped ``(H, W, ...)``)."""
+        ans = self._scene_at(t_s).cast_rays(o3d.core.Tensor(cam.rays), nthreads=self.nthreads)
+        H, W = cam.intrinsics.shape
+        return {k: v.numpy().reshape((H, W) + v.numpy().shape[1:]) for k, v in ans.items()}
 
 
-def to_rgb8(rgb: np.ndarray, *, noise_dn: float, rng: np.random.Generator) -> np.ndarray:
-    """Float RGB in [0, 1] to uint8 with Gaussian sensor noise of ``noise_dn`` grey levels."""
-    img = rgb * 255.0
-    if noise_dn > 0:
-        img = img + rng.standard_normal(img.shape, dtype=np.float32) * np.float32(noise_dn)
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+def _pixel_rects(bounds: np.ndarray, cam: CameraRays):
+    """Yield ``(row0, row1, col0, col1)`` (end exclusive) per part box, ``None`` for "every pixel"
+    (a box straddling the camera plane); boxes wholly behind the camera are skipped."""
+    K, T = cam.intrinsics, cam.T_world_cam
+    corners = np.where(_BOX_CORNERS[None, :, :, None] == 0, bounds[:, None, 0, :, None],
+                       bounds[:, None, 1, :, None])[..., 0]  # (P, 8, 3)
+    pc = (corners - T.t) @ T.R  # world -> camera
+    z = pc[..., 2]
+    for p in range(len(bounds)):
+        if (z[p] <= 0).all():
+            continue
+        if (z[p] < 1e-3).any():
+            yield None
+            return
+        x, y = pc[p, :, 0] / z[p], pc[p, :, 1] / z[p]
+        rect = _normalised_rect_to_pixels(K, x.min(), x.max(), y.min(), y.max())
+        if rect is not None:
+            yield rect
 
 
-__all__ = ["BACKGROUND_RGB", "CameraRays", "Hits", "Renderer", "camera_rays", "luminance", "to_rgb8"]
+def _normalised_rect_to_pixels(K: Intrinsics, x0, x1, y0, y1):
+    if K.has_distortion:  # the image of the rectangle is bounded by the image of its border
+        s = np.linspace(0.0, 1.0, 17)
+        xs = np.concatenate([x0 + (x1 - x0) * s, np.full(17, x1), x0 + (x1 - x0) * s, np.full(17, x0)])
+        ys = np.concatenate([np.full(17, y0), y0 + (y1 - y0) * s, np.full(17, y1), y0 + (y1 - y0) * s])
+        d = K.distort(np.stack([xs, ys], axis=1))
+        u, v = K.fx * d[:, 0] + K.cx, K.fy * d[:, 1] + K.cy
+        u0, u1, v0, v1, margin = u.min(), u.max(), v.min(), v.max(), 3
+    else:
+        u0, u1, v0, v1, margin = K.fx * x0 + K.cx, K.fx * x1 + K.cx, K.fy * y0 + K.cy, K.fy * y1 + K.cy, 1
+    c0, c1 = max(0, int(np.floor(u0)) - margin), min(K.width, int(np.ceil(u1)) + margin + 1)
+    r0, r1 = max(0, int(np.floor(v0)) - margin), min(K.height, int(np.ceil(v1)) + margin + 1)
+    return (r0, r1, c0, c1) if c0 < c1 and r0 < r1 else None
+
+
+def reference_colors(renderer: Renderer, ans: dict[str, np.ndarray]) -> np.ndarray:
+    """The shaded colour of a cast (``cast_raw``'s answer) computed with the numpy reference
+    (:mod:`capture.sim.texture`): ``(H, W, 3)`` float32 in [0, 1]; for tests of the kernel."""
+    scene = renderer.scene
+    hit = np.isfinite(ans["t_hit"])
+    out = np.full(ans["t_hit"].shape + (3,), BACKGROUND_RGB, dtype=np.float32)
+    prim, uv = ans["primitive_ids"][hit], ans["primitive_uvs"][hit]
+    tri = scene.triangles[prim]
+    rest = scene.rest_vertices
+    p = (1 - uv[:, :1] - uv[:, 1:]) * rest[tri[:, 0]] + uv[:, :1] * rest[tri[:, 1]] + uv[:, 1:] * rest[tri[:, 2]]
+    albedo = surface_color(p, scene.triangle_material[prim], scene.materials)
+    out[hit] = shade(albedo, ans["primitive_normals"][hit])
+    return out

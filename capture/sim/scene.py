@@ -55,11 +55,13 @@ class Part:
 
 @dataclass
 class Actor:
-    """Parts that move together; ``poses(t_s)`` returns one 4x4 ``T_world_part`` per part."""
+    """Parts that move together; ``poses(t_s)`` returns one 4x4 ``T_world_part`` per part.
+    ``moving=False`` promises the poses never change (the renderer caches what it sees)."""
 
     name: str
     parts: list[Part]
     poses: Callable[[float], list[np.ndarray]]
+    moving: bool = True
 
 
 @dataclass
@@ -72,14 +74,31 @@ class Scene:
     static: bool = False
 
     def __post_init__(self) -> None:
+        # Still actors first: their triangles are a prefix, so a cast of the still part alone
+        # numbers triangles as the full scene does.
+        self.actors = sorted(self.actors, key=lambda a: a.moving and not self.static)
         parts = [p for a in self.actors for p in a.parts]
         counts = [len(p.vertices) for p in parts]
-        self._offsets = np.concatenate([[0], np.cumsum(counts)])
+        self._offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.rest_vertices = np.concatenate([p.vertices for p in parts]).astype(np.float32)
         self.triangles = np.concatenate(
             [p.triangles + o for p, o in zip(parts, self._offsets[:-1])]).astype(np.uint32)
         self.triangle_material = np.concatenate(
             [np.full(len(p.triangles), p.material, dtype=np.int32) for p in parts])
+        still = [a for a in self.actors if not a.moving or self.static]
+        self.n_still_parts = sum(len(a.parts) for a in still)
+        self.n_still_triangles = sum(len(p.triangles) for a in still for p in a.parts)
+        self.n_still_vertices = int(self._offsets[self.n_still_parts])
+
+    def moving_part_bounds(self, vertices: np.ndarray) -> np.ndarray:
+        """Axis-aligned world bounds ``(P, 2, 3)`` (min, max) of every moving part, given
+        :meth:`vertices_at`'s output."""
+        starts = self._offsets[self.n_still_parts:-1]
+        if len(starts) == 0:
+            return np.zeros((0, 2, 3), np.float32)
+        lo = np.minimum.reduceat(vertices, starts, axis=0)
+        hi = np.maximum.reduceat(vertices, starts, axis=0)
+        return np.stack([lo, hi], axis=1)
 
     def part_poses(self, t_s: float) -> list[np.ndarray]:
         """``T_world_part`` (4x4) of every part, in the order of :attr:`rest_vertices`."""
@@ -108,7 +127,7 @@ class _Ids:
 
 
 def _static_actor(name: str, parts: list[Part], poses: list[np.ndarray]) -> Actor:
-    return Actor(name, parts, lambda t, _p=poses: _p)
+    return Actor(name, parts, lambda t, _p=poses: _p, moving=False)
 
 
 def _room(ids: _Ids, *, back_y: float, half_width: float = 2.8, height: float = 3.0) -> Actor:

@@ -12,7 +12,7 @@ from time import perf_counter
 import numpy as np
 
 from capture.sim.noise import StereoNoise, TofNoise, stereo_depth, tof_depth
-from capture.sim.render import CameraRays, Renderer, luminance, to_rgb8
+from capture.sim.render import CameraRays, Renderer
 from capture.sim.rigs import SensorSpec
 
 
@@ -51,22 +51,20 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
                  rng: np.random.Generator, depth_scale: float = 1.0, timings: Timings | None = None) -> SensorFrame:
     """Render sensor ``spec`` at scene time ``t_s`` seconds (``depth_scale`` multiplies its depth)."""
     timings = timings if timings is not None else Timings()
+    seeds = rng.integers(0, 2**63, size=2)
     with timings("raycast+texture"):
-        hits = renderer.cast(cams.depth, t_s)
-    if isinstance(spec.noise, StereoNoise):
-        with timings("noise"):
-            lum = luminance(hits.shaded)
+        hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)
+    with timings("noise"):
+        if isinstance(spec.noise, StereoNoise):
             K = cams.depth.intrinsics
-            noisy = stereo_depth(hits.z, cams.depth.xy[..., 0], lum, noise=spec.noise, fx=K.fx, cx=K.cx, rng=rng)
-    else:
-        assert isinstance(spec.noise, TofNoise)
-        with timings("noise"):
-            noisy = tof_depth(hits.z, luminance(hits.albedo), noise=spec.noise, rng=rng)
-    depth = noisy.depth if depth_scale == 1.0 else (noisy.depth * np.float32(depth_scale)).astype(np.float32)
-    shaded = hits.shaded
+            noisy = stereo_depth(hits.z, cams.depth.xy[..., 0], hits.shaded_luminance, noise=spec.noise,
+                                 fx=K.fx, cx=K.cx, rng=rng)
+        else:
+            assert isinstance(spec.noise, TofNoise)
+            noisy = tof_depth(hits.z, hits.albedo_luminance, noise=spec.noise, rng=rng)
+        depth = noisy.depth if depth_scale == 1.0 else (noisy.depth * np.float32(depth_scale)).astype(np.float32)
+    color = hits.rgb
     if cams.color is not None:
         with timings("raycast+texture"):
-            shaded = renderer.cast(cams.color, t_s).shaded
-    with timings("noise"):
-        color = to_rgb8(shaded, noise_dn=spec.color_noise_dn, rng=rng)
+            color = renderer.cast(cams.color, t_s, noise_seed=int(seeds[1]), noise_dn=spec.color_noise_dn).rgb
     return SensorFrame(depth, color, hits.z, noisy.invalid)

@@ -7,6 +7,7 @@ and the noise-free depth to ``truth/``.
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from dataclasses import dataclass, replace
@@ -20,13 +21,14 @@ from capture.session import SessionWriter
 from capture.sim.clocks import DEFAULT_MAX_SHIFT_US, draw_clocks, frame_schedule
 from capture.sim.effects import parse_effects
 from capture.sim.errors import SimulationError
-from capture.sim.output import Plan, TruthWriter, session_manifest
-from capture.sim.render import Renderer, camera_rays
+from capture.sim.output import Plan, TruthWriter, session_manifest, write_file
+from capture.sim.pipeline import EncodedFrame, Event, render_frames
 from capture.sim.rigs import Rig, build_rig
 from capture.sim.scene import build_scene
-from capture.sim.sensors import SensorCameras, Timings, render_frame
+from capture.sim.sensors import Timings
+from depthbench.fsutil import sha256_bytes
 
-COLOR_ENCODINGS = ("png", "jpeg")
+COLOR_ENCODINGS = ("auto", "png", "jpeg")
 
 
 @dataclass(frozen=True)
@@ -34,8 +36,9 @@ class SimulationResult:
     """What :func:`simulate` wrote.
 
     ``frames``/``dropped``: frames written / dropped per sensor; ``time_shift_us``: the true
-    Delta between the target (LQ) and reference (HQ) host clocks; ``timings_s``: seconds per
-    stage (``raycast+texture``, ``noise``, ``encode+write``, ``truth``, ``scene``).
+    Delta between the target (LQ) and reference (HQ) host clocks; ``timings_s``: CPU seconds per
+    stage summed over the rendering processes (``raycast+texture``, ``noise``, ``encode``) and
+    seconds of the main process (``write``, ``truth``).
     """
 
     root: Path
@@ -60,7 +63,8 @@ class SimulationResult:
 def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float = 5.0, seed: int = 0,
              effects=None, undeclared: bool = False, force: bool = False, time_shift_us: int | None = None,
              static: bool = False, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: float = 30.0,
-             color_encoding: str = "png", progress: bool = True, name: str | None = None) -> SimulationResult:
+             color_encoding: str = "auto", progress: bool = True, name: str | None = None,
+             workers: int | None = None) -> SimulationResult:
     """Simulate rig ``rig`` filming scene ``scene`` for ``seconds`` and write a session to ``out``.
 
     Args:
@@ -74,7 +78,9 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
             drawn uniformly within +-60 ms when None.
         static: freeze the scene (the time shift is then unobservable).
         scale: multiply every image size (e.g. 0.25 for tiny tests). lq_fps, hq_fps: frame rates.
-        color_encoding: ``png`` or ``jpeg`` for the colour streams.
+        color_encoding: ``png`` or ``jpeg`` for every colour stream; ``auto``: PNG for LQ, JPEG for HQ.
+        workers: rendering processes (None: one per core, at most 4, for runs of 90+ frames; the
+            bytes written do not depend on it).
     Returns:
         :class:`SimulationResult`. Read the truth with :func:`capture.truth.read_truth`.
     """
@@ -86,7 +92,7 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
     timings = Timings()
     try:
         truth = TruthWriter(writer.root, plan)
-        _render_all(plan, writer, truth, timings, progress=progress)
+        _render_all(plan, writer, truth, timings, progress=progress, workers=workers)
         with timings("truth"):
             truth.close()
         root = writer.close()
@@ -103,7 +109,7 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
 # ----------------------------------------------------------------------------- planning
 def make_plan(*, rig: str, scene: str, seconds: float, seed: int, effects, undeclared: bool,
               time_shift_us: int | None, static: bool, scale: float, lq_fps: float, hq_fps: float,
-              color_encoding: str = "png", name: str | None = None) -> Plan:
+              color_encoding: str = "auto", name: str | None = None) -> Plan:
     """Check the options and decide everything but the pixels: rig, clocks, which frames exist."""
     effects = parse_effects(effects)
     _check_options(seconds=seconds, seed=seed, time_shift_us=time_shift_us, color_encoding=color_encoding)
@@ -142,32 +148,39 @@ def _apply_lens_effect(rig: Rig, effects: dict[str, float]) -> Rig:
 
 
 # ----------------------------------------------------------------------------- rendering
-def _events(plan: Plan) -> list[tuple[int, int, str, int]]:
+def _events(plan: Plan) -> list[Event]:
     """(scene time µs, sensor order, sensor, index in its schedule) for every frame, in time order."""
     ev = [(int(t), order, s.id, i) for order, s in enumerate(plan.rig.sensors)
           for i, t in enumerate(plan.schedules[s.id].scene_time_us)]
     return sorted(ev)
 
 
-def _render_all(plan: Plan, writer: SessionWriter, truth: TruthWriter, timings: Timings, *, progress: bool) -> None:
-    with timings("scene"):
-        scene = build_scene(plan.scene_name, seed=plan.seed, static=plan.static)
-        renderer = Renderer(scene)
-        cams = {s.id: SensorCameras(camera_rays(s.depth, s.T_world_depth),
-                                    None if s.color_is_depth else camera_rays(s.color, s.T_world_color))
-                for s in plan.rig.sensors}
+def _default_workers(n_events: int) -> int:
+    """Worker processes: one per core (at most 4) for runs long enough to pay for their start."""
+    return 1 if n_events < 90 else max(1, min(os.cpu_count() or 1, 4))
+
+
+def _render_all(plan: Plan, writer: SessionWriter, truth: TruthWriter, timings: Timings, *, progress: bool,
+                workers: int | None) -> None:
     events = _events(plan)
-    for t_us, order, sid, i in tqdm(events, desc=f"simulate {plan.rig.name}", unit="frame", file=sys.stderr,
-                                    disable=not progress, leave=False):
-        spec = plan.rig.sensor(sid)
-        sched = plan.schedules[sid]
-        fn = int(sched.frame_number[i])
-        scale = plan.effects.get("depth_scale", 1.0) if sid == plan.rig.target else 1.0
-        rng = np.random.default_rng([plan.seed, 3, order, fn])
-        frame = render_frame(spec, cams[sid], renderer, t_us * 1e-6, rng=rng, depth_scale=scale, timings=timings)
-        dev, host = int(sched.device_timestamp_us[i]), int(sched.host_timestamp_us[i])
-        with timings("encode+write"):
-            writer.add_frame(sid, "depth", fn, dev, host, frame.depth)
-            writer.add_frame(sid, "color", fn, dev, host, frame.color)
-        with timings("truth"):
-            truth.add(sid, i, frame.truth_depth)
+    workers = _default_workers(len(events)) if workers is None else workers
+    bar = tqdm(total=len(events), desc=f"simulate {plan.rig.name}", unit="frame", file=sys.stderr,
+               disable=not progress, leave=False)
+    with bar:
+        for enc in render_frames(plan, events, workers=workers):
+            for stage, s in enc.cpu_s.items():
+                timings[stage] = timings.get(stage, 0.0) + s
+            with timings("write"):
+                _write_frame(plan, writer, truth, enc)
+            bar.update(1)
+
+
+def _write_frame(plan: Plan, writer: SessionWriter, truth: TruthWriter, enc: EncodedFrame) -> None:
+    sched = plan.schedules[enc.sensor]
+    dev, host = int(sched.device_timestamp_us[enc.index]), int(sched.host_timestamp_us[enc.index])
+    for stream in ("depth", "color"):
+        data, ext = enc.files[stream]
+        rel = f"{enc.sensor}/{stream}/{enc.frame_number:08d}.{ext}"
+        write_file(writer.root, rel, data)
+        writer.index_frame(enc.sensor, stream, enc.frame_number, dev, host, rel, sha256_bytes(data))
+    truth.add(enc.sensor, enc.index, enc.files["truth"][0])

@@ -41,27 +41,29 @@ class Material:
     brightness: float = 1.0
 
 
+PRIMES = (np.uint64(0x8DA6B343), np.uint64(0xD8163841), np.uint64(0xCB1AB31F), np.uint64(0x9E3779B1),
+           np.uint64(0x85EBCA77))
+
+
 def _hash(*keys: np.ndarray) -> np.ndarray:
-    """A 64-bit integer hash of integer arrays (splitmix64 finaliser); wraps by design."""
-    h = np.zeros(np.broadcast(*keys).shape, dtype=np.uint64)
+    """A 64-bit integer hash of up to five integer arrays (splitmix64 finaliser); wraps by design."""
     with np.errstate(over="ignore"):
-        for k in keys:
-            h = (h ^ np.asarray(k).astype(np.int64).astype(np.uint64)) * _M1
-            h ^= h >> np.uint64(30)
-            h *= _M2
-            h ^= h >> np.uint64(27)
-            h *= _M3
-            h ^= h >> np.uint64(31)
-    return h
+        h = np.uint64(0)
+        for k, prime in zip(keys, PRIMES):
+            h = h ^ (np.asarray(k).astype(np.int64).astype(np.uint64) * prime)
+        h = (h ^ (h >> np.uint64(30))) * _M2
+        h = (h ^ (h >> np.uint64(27))) * _M3
+        return h ^ (h >> np.uint64(31))
 
 
 # Cell grids are offset by irrational fractions so that flat faces (z = 0 of a quad, the
 # faces of a box) never lie on a cell boundary, where rounding would make the colour flicker.
-_OFFSET = np.array([0.3183099, 0.2718282, 0.1414214], dtype=np.float32)
+OFFSET = np.array([0.3183099, 0.2718282, 0.1414214], dtype=np.float32)
 
 
-def _cell_hash(p: np.ndarray, size: float, material: np.ndarray, salt: int) -> np.ndarray:
-    c = np.floor(p / np.float32(size) + _OFFSET * np.float32(salt)).astype(np.int64)
+def _cell_hash(p: np.ndarray, size, material: np.ndarray, salt: int) -> np.ndarray:
+    """Hash of the cell of side ``size`` (m; scalar or ``(N, 1)``) holding each point."""
+    c = np.floor(p / size + OFFSET * np.float32(salt)).astype(np.int64)
     return _hash(c[:, 0], c[:, 1], c[:, 2], material, np.int64(salt))
 
 
@@ -87,36 +89,51 @@ def surface_color(p_local: np.ndarray, material_id: np.ndarray, materials: dict[
     """
     p = np.asarray(p_local, dtype=np.float32)
     mat = np.asarray(material_id, dtype=np.int64)
-    out = np.empty((len(p), 3), dtype=np.float32)
-    for m in np.unique(mat):
-        sel = mat == m
-        spec = (materials or {}).get(int(m), Material())
-        out[sel] = _material_color(p[sel], int(m), spec)
-    return out
-
-
-def _material_color(p: np.ndarray, m: int, spec: Material) -> np.ndarray:
-    mid = np.int64(m)
-    fine = _rgb(_cell_hash(p, spec.fine_m, mid, 1))
-    coarse = _rgb(_cell_hash(p, spec.coarse_m, mid, 2))
-    tint = _rgb(_hash(mid, np.int64(7)).reshape(1))
-    color = (0.45 * fine + 0.35 * coarse + 0.2 * tint) * spec.brightness
-    patch = _unit(_cell_hash(p, spec.patch_m, mid, 3), 40)
-    dark = patch < spec.dark_fraction
-    flat = (patch >= spec.dark_fraction) & (patch < spec.dark_fraction + spec.flat_fraction)
-    color[dark] = 0.03
-    color[flat] = 0.55 * tint + 0.2
+    table = _material_table(materials or {}, int(mat.max(initial=0)) + 1)
+    spec = {k: v[mat][:, None] for k, v in table.items()}
+    fine = _rgb(_cell_hash(p, spec["fine_m"], mat, 1))
+    grain = _unit(_cell_hash(p, spec["fine_m"] * np.float32(0.25), mat, 4), 48)[:, None] - np.float32(0.5)
+    coarse = _rgb(_cell_hash(p, spec["coarse_m"], mat, 2))
+    tint = _rgb(_hash(np.arange(len(table["brightness"])), np.int64(7)))[mat]
+    color = (np.float32(0.45) * fine + np.float32(0.35) * coarse + np.float32(0.2) * tint
+             + np.float32(0.25) * grain) * spec["brightness"]
+    patch = _unit(_cell_hash(p, spec["patch_m"], mat, 3), 40)[:, None]
+    dark = patch < spec["dark_fraction"]
+    flat = (patch >= spec["dark_fraction"]) & (patch < spec["dark_fraction"] + spec["flat_fraction"])
+    color = np.where(dark, np.float32(0.03), color)
+    color = np.where(flat, np.float32(0.55) * tint + np.float32(0.2), color)
     return np.clip(color, 0.0, 1.0)
+
+
+def _material_table(materials: dict[int, Material], n: int) -> dict[str, np.ndarray]:
+    """Material parameters as arrays indexed by material id (defaults where not given)."""
+    specs = [materials.get(i, Material()) for i in range(max(n, max(materials, default=0) + 1))]
+    return {f: np.array([getattr(s, f) for s in specs], dtype=np.float32)
+            for f in ("fine_m", "coarse_m", "patch_m", "dark_fraction", "flat_fraction", "brightness")}
+
+
+LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+LIGHT_DIR = np.array([0.3, -0.5, 0.8], dtype=np.float32) / np.float32(np.linalg.norm([0.3, -0.5, 0.8]))
+AMBIENT = np.float32(0.45)
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:
     """Rec. 709 luminance of RGB in [0, 1], shape ``(..., 3)`` -> ``(...)``."""
-    return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
+    return rgb[..., 0] * LUMA[0] + rgb[..., 1] * LUMA[1] + rgb[..., 2] * LUMA[2]
 
 
-def shade(albedo: np.ndarray, normals: np.ndarray, *, light_dir=(0.3, -0.5, 0.8), ambient: float = 0.45) -> np.ndarray:
-    """Lambertian shading (view independent) of ``(N, 3)`` albedo with world normals ``(N, 3)``."""
-    L = np.asarray(light_dir, dtype=np.float32)
-    L = L / np.linalg.norm(L)
-    lam = np.abs(normals @ L)
-    return albedo * (ambient + (1.0 - ambient) * lam)[:, None]
+def shade(albedo: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Lambertian shading (view independent) of ``(N, 3)`` albedo with world normals ``(N, 3)``:
+    ``albedo * (AMBIENT + (1 - AMBIENT) |n . LIGHT_DIR|)``."""
+    lam = np.abs(normals @ LIGHT_DIR)
+    return albedo * (AMBIENT + (np.float32(1) - AMBIENT) * lam)[:, None]
+
+
+def material_arrays(materials: dict[int, Material]) -> tuple[np.ndarray, np.ndarray]:
+    """``(M, 6)`` float32 parameters (fine_m, coarse_m, patch_m, dark_fraction, flat_fraction,
+    brightness) and ``(M, 3)`` float32 tint per material id, for the compiled kernel."""
+    table = _material_table(materials, 1)
+    params = np.stack([table[f] for f in ("fine_m", "coarse_m", "patch_m", "dark_fraction", "flat_fraction",
+                                          "brightness")], axis=1)
+    tint = _rgb(_hash(np.arange(len(params)), np.int64(7)))
+    return params.astype(np.float32), tint.astype(np.float32)

@@ -1,0 +1,137 @@
+"""Rendering frames in parallel: each worker process renders whole frames and encodes them.
+
+Open3D holds the GIL while it casts, so threads cannot overlap the casts with the numpy and
+encoding work; separate processes can. Every frame's randomness is seeded by
+``(seed, sensor, frame number)`` alone, so the bytes do not depend on the number of workers or
+on which worker rendered which frame. The main process only writes files and index rows, in
+scene-time order.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+from capture.session import PNG_PARAMS, encode_depth
+from capture.sim.output import TRUTH_DEPTH_UNIT_M, Plan
+from capture.sim.render import Renderer, camera_rays
+from capture.sim.scene import build_scene
+from capture.sim.sensors import SensorCameras, render_frame
+from depthbench.fsutil import sha256_bytes
+
+#: One frame to render: (scene time µs, sensor order, sensor id, index in its schedule).
+Event = tuple[int, int, str, int]
+
+
+@dataclass
+class EncodedFrame:
+    """A rendered frame, encoded: ``files`` maps ``depth``/``color``/``truth`` to ``(bytes, ext)``."""
+
+    sensor: str
+    index: int
+    frame_number: int
+    files: dict[str, tuple[bytes, str]]
+    cpu_s: dict[str, float]
+
+
+class _CpuTimings(dict):
+    """Per-stage CPU seconds of this process (``time.process_time``), accumulated."""
+
+    def __call__(self, stage: str):
+        return _Stage(self, stage)
+
+
+class _Stage:
+    def __init__(self, owner: dict, stage: str) -> None:
+        self.owner, self.stage = owner, stage
+
+    def __enter__(self) -> None:
+        self.t = time.process_time()
+
+    def __exit__(self, *exc) -> None:
+        self.owner[self.stage] = self.owner.get(self.stage, 0.0) + time.process_time() - self.t
+
+
+def encode_png16(counts: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", counts, PNG_PARAMS)
+    return buf.tobytes()
+
+
+def encode_color(rgb: np.ndarray, encoding: str) -> tuple[bytes, str]:
+    """RGB uint8 to PNG or JPEG (quality 95) bytes, as ``capture.session`` stores colour."""
+    bgr = np.ascontiguousarray(rgb[..., ::-1])
+    if encoding == "jpeg":
+        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        return buf.tobytes(), "jpg"
+    ok, buf = cv2.imencode(".png", bgr, PNG_PARAMS)
+    return buf.tobytes(), "png"
+
+
+class FrameWorker:
+    """Renders and encodes frames of a :class:`Plan` (one per process)."""
+
+    def __init__(self, plan: Plan, *, nthreads: int = 0) -> None:
+        self.plan = plan
+        scene = build_scene(plan.scene_name, seed=plan.seed, static=plan.static)
+        self.renderer = Renderer(scene, nthreads=nthreads)
+        self.cams = {s.id: SensorCameras(camera_rays(s.depth, s.T_world_depth),
+                                         None if s.color_is_depth else camera_rays(s.color, s.T_world_color))
+                     for s in plan.rig.sensors}
+
+    def render(self, event: Event) -> EncodedFrame:
+        t_us, order, sid, i = event
+        plan = self.plan
+        spec = plan.rig.sensor(sid)
+        fn = int(plan.schedules[sid].frame_number[i])
+        scale = plan.effects.get("depth_scale", 1.0) if sid == plan.rig.target else 1.0
+        timings = _CpuTimings()
+        rng = np.random.default_rng([plan.seed, 3, order, fn])
+        frame = render_frame(spec, self.cams[sid], self.renderer, t_us * 1e-6, rng=rng, depth_scale=scale,
+                             timings=timings)
+        with timings("encode"):
+            files = {"depth": (encode_png16(encode_depth(frame.depth, spec.depth_unit_m)), "png"),
+                     "color": encode_color(frame.color, plan.color_encoding_of(sid)),
+                     "truth": (encode_png16(encode_depth(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
+        return EncodedFrame(sid, i, fn, files, dict(timings))
+
+
+_WORKER: FrameWorker | None = None
+
+
+def _init_worker(plan: Plan) -> None:
+    global _WORKER
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    _WORKER = FrameWorker(plan, nthreads=1)
+
+
+def _render_in_worker(event: Event) -> EncodedFrame:
+    assert _WORKER is not None
+    return _WORKER.render(event)
+
+
+def render_frames(plan: Plan, events: list[Event], *, workers: int) -> Iterator[EncodedFrame]:
+    """Yield the encoded frames of ``events`` in order, rendered by ``workers`` processes
+    (1: in this process, Embree using every core)."""
+    if workers <= 1:
+        worker = FrameWorker(plan, nthreads=0)
+        for ev in events:
+            yield worker.render(ev)
+        return
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                             initargs=(plan,)) as pool:
+        try:
+            yield from pool.map(_render_in_worker, events, chunksize=2)
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+
+
+def frame_sha(data: bytes) -> str:
+    return sha256_bytes(data)

@@ -1,0 +1,488 @@
+"""Depth warping: a depth image of one camera re-rendered on another camera's image plane (eq. 30).
+
+Pure numpy/OpenCV, no I/O. Used for the HQ depth onto the LQ depth image (the reference of the
+aligned dataset) and for the HQ depth onto the HQ colour image (to lift colour features to 3D).
+
+Algorithm (forward splatting with a z-buffer and first-order surface interpolation)
+----------------------------------------------------------------------------------
+For every source pixel ``p`` with depth ``d``:
+
+1. Eq. 30: ``X = T_dst_src * pi_src^-1(p, d)``; ``(u, v) = pi_dst(X)`` with both cameras' lens
+   distortion (the source rays are undistorted once per geometry, the destination projection
+   applies the OpenCV distortion polynomial); ``w = 1 / Z_dst`` (inverse depth).
+2. Surface continuity: two 4-neighbours belong to one surface when their source depths differ by
+   at most ``edge_rel`` of the depth (default 3 %). A point whose two neighbours along one axis are
+   both on other surfaces is a *flying pixel* (ToF mixed pixel) or a one-pixel sliver and is dropped.
+3. Local plane: from the continuous neighbours (central differences, one-sided at edges) the
+   Jacobian of ``(u, v)`` and the gradient of ``w`` on the source grid give ``dw/du, dw/dv`` on the
+   destination image. Inverse depth is affine in the image for a plane, so extrapolating ``w`` to
+   a nearby destination pixel centre is exact on planes (up to the destination distortion's second
+   order over one pixel) -- no staircase error on slanted floors and walls.
+4. Splatting: a point with continuous neighbours on all four sides covers the ``k x k`` block of
+   destination pixels around it (``k = 2`` when the destination is up to 2x finer, larger when
+   finer still), restricted to pixels within one neighbour spacing of it, so the splats of
+   neighbouring points overlap and a continuous surface leaves no holes. A point on a depth edge
+   only writes its nearest pixel: the surface behind an edge is never painted with foreground
+   values and no value is ever a mix of two surfaces (each pixel gets one point's plane value).
+5. Z-buffer: ``np.maximum.at`` on inverse depth; the nearest surface wins.
+
+Output: ``float32`` metres ``(H_dst, W_dst)``, NaN where no source surface lands (occlusion
+shadows, outside the source's view, edges).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from capture.camera import Intrinsics, Transform
+
+DEFAULT_EDGE_REL = 0.03
+
+
+class DepthWarper:
+    """Warp depth images from ``K_src`` to ``K_dst`` through ``T_dst_src`` (precomputes the rays).
+
+    Args:
+        K_src: source depth camera (e.g. HQ depth, 512x424).
+        K_dst: destination camera (e.g. LQ depth, 640x480).
+        T_dst_src: maps source camera points into the destination camera frame, metres.
+        edge_rel: relative depth jump that separates two surfaces (0.03 = 3 %).
+        footprint: splat block size ``k``; ``None`` chooses it from the focal-length ratio.
+
+    Example:
+        >>> K = Intrinsics(8, 6, 10.0, 10.0, 3.5, 2.5)
+        >>> w = DepthWarper(K, K, Transform.identity())
+        >>> bool(np.allclose(w(np.full((6, 8), 2.0, np.float32)), 2.0))
+        True
+    """
+
+    def __init__(self, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, *,
+                 edge_rel: float = DEFAULT_EDGE_REL, footprint: int | None = None, min_depth_m: float = 0.2) -> None:
+        self.K_src, self.K_dst, self.T = K_src, K_dst, T_dst_src
+        self.edge_rel = float(edge_rel)
+        if footprint is None:
+            ratio = max(K_dst.fx / K_src.fx, K_dst.fy / K_src.fy)
+            footprint = max(2, int(math.ceil(ratio * 1.15)))
+        self.k = int(footprint)
+        self.r = self.k  # padding of the z-buffer, absorbs targets outside the image
+        H, W = K_src.shape
+        rays = K_src.ray_grid().reshape(-1, 3)  # undistorted source rays, z = 1
+        a = rays @ T_dst_src.R.T  # X_dst = d * a + t
+        self.crop = self._source_crop(a, min_depth_m)
+        r0, r1, c0, c1 = self.crop
+        self._a = [np.ascontiguousarray(a[:, i].reshape(H, W)[r0:r1, c0:c1], dtype=np.float32) for i in range(3)]
+        self._t = [np.float32(x) for x in T_dst_src.t]
+        Hd, Wd = K_dst.shape
+        self._Wp = Wd + 2 * self.r
+        self._Hp = Hd + 2 * self.r
+        self._offsets = [(a_, b_) for b_ in range(-(self.k // 2) + 1, self.k // 2 + 1 + (self.k % 2))
+                         for a_ in range(-(self.k // 2) + 1, self.k // 2 + 1 + (self.k % 2))]
+        self._dist = K_dst.dist_coeffs.astype(np.float32) if K_dst.has_distortion else None
+
+    def _source_crop(self, a: np.ndarray, min_depth_m: float) -> tuple[int, int, int, int]:
+        """Rows and columns of the source that can land on the destination image at any depth
+        from ``min_depth_m`` to infinity (a pixel moves along a segment in the destination image
+        between those two depths); the warp only processes this rectangle (plus one pixel)."""
+        H, W = self.K_src.shape
+        m = self.r + 2
+        near = self.K_dst.project(a * min_depth_m + self.T.t)
+        far = self.K_dst.project(np.where(a[:, 2:] > 1e-9, a, np.nan))  # direction only (t -> 0)
+        lo = np.fmin(near, far)
+        hi = np.fmax(near, far)
+        hit = ((hi[:, 0] >= -m) & (lo[:, 0] <= self.K_dst.width - 1 + m)
+               & (hi[:, 1] >= -m) & (lo[:, 1] <= self.K_dst.height - 1 + m)).reshape(H, W)
+        if not hit.any():
+            return 0, 1, 0, 1
+        rows, cols = np.flatnonzero(hit.any(axis=1)), np.flatnonzero(hit.any(axis=0))
+        return (max(0, rows[0] - 1), min(H, rows[-1] + 2), max(0, cols[0] - 1), min(W, cols[-1] + 2))
+
+    # ------------------------------------------------------------------ forward map
+    def forward_map(self, depth: np.ndarray):
+        """Eq. 30 for every source pixel: destination ``u, v`` (px) and inverse depth ``w`` (1/m).
+
+        Returns ``(u, v, w, valid)``, each ``(H_src, W_src)``; outside the source crop (pixels
+        that cannot reach the destination image) ``u, v`` are NaN and ``w`` is 0; invalid points (no
+        depth, behind the destination camera) have ``valid = False`` and meaningless values.
+        """
+        d = np.asarray(depth, dtype=np.float32)
+        if d.shape != self.K_src.shape:
+            raise ValueError(f"depth image is {d.shape[1]}x{d.shape[0]}, source camera is "
+                             f"{self.K_src.width}x{self.K_src.height}")
+        r0, r1, c0, c1 = self.crop
+        u, v, w, valid = self._forward(np.ascontiguousarray(d[r0:r1, c0:c1]).ravel())
+        out = []
+        for arr, fill in ((u, np.nan), (v, np.nan), (w, 0.0), (valid, False)):
+            full = np.full(d.shape, fill, arr.dtype)
+            full[r0:r1, c0:c1] = arr.reshape(r1 - r0, c1 - c0)
+            out.append(full)
+        return tuple(out)
+
+    def _forward(self, d: np.ndarray, ws: dict | None = None):
+        ws = ws if ws is not None else self._workspace()
+        ax, ay, az = (a.ravel() for a in self._a)
+        tx, ty, tz = self._t
+        f32 = np.float32
+        Z, x, y, valid, dc = ws["Z"], ws["x"], ws["y"], ws["valid"], ws["t2"]
+        # branch-free: no depth (NaN, <= 0) becomes 0, and every value stays finite
+        np.fmax(d, f32(0), out=dc)
+        np.multiply(dc, az, out=Z)
+        Z += tz
+        np.greater(Z, f32(1e-6), out=valid)
+        valid &= dc > 0
+        np.maximum(Z, f32(1e-6), out=Z)
+        w = np.divide(f32(1), Z, out=Z)
+        np.multiply(dc, ax, out=x)
+        x += tx
+        x *= w
+        np.multiply(dc, ay, out=y)
+        y += ty
+        y *= w
+        if self._dist is not None:
+            np.clip(x, -4, 4, out=x)  # beyond any lens model's range; such points leave the image
+            np.clip(y, -4, 4, out=y)
+            xd, yd = _distort(x, y, self._dist)
+            x[:], y[:] = xd, yd
+        K = self.K_dst
+        u = x
+        u *= f32(K.fx)
+        u += f32(K.cx)
+        v = y
+        v *= f32(K.fy)
+        v += f32(K.cy)
+        return u, v, w, valid
+
+    # ------------------------------------------------------------------ the warp
+    def __call__(self, depth: np.ndarray) -> np.ndarray:
+        return self.warp(depth)
+
+    def warp(self, depth: np.ndarray) -> np.ndarray:
+        """Warp one source depth image ``(H_src, W_src)`` float32 metres (NaN = none) to the destination.
+
+        Works on flat arrays: the x-neighbour of pixel ``k`` is ``k + 1`` (row ends masked), the
+        y-neighbour ``k + W``; every step is a contiguous numpy operation into preallocated
+        buffers (fresh memory costs page faults that would dominate the run time).
+        """
+        d2 = np.asarray(depth, dtype=np.float32)
+        if d2.shape != self.K_src.shape:
+            raise ValueError(f"depth image is {d2.shape[1]}x{d2.shape[0]}, source camera is "
+                             f"{self.K_src.width}x{self.K_src.height}")
+        r0, r1, c0, c1 = self.crop
+        d2 = np.ascontiguousarray(d2[r0:r1, c0:c1])
+        H, W = d2.shape
+        N = H * W
+        d = d2.ravel()
+        ws = self._workspace()
+        u, v, w, valid = self._forward(d, ws)
+        f32 = np.float32
+        cxp, cyp, gxp, gyp, t1, t2 = ws["cxp"], ws["cyp"], ws["gxp"], ws["gyp"], ws["t1"], ws["t2"]
+        with np.errstate(invalid="ignore"):
+            if not valid.all() and np.any(~valid & (d > 0)):  # behind the destination camera
+                d = np.where(valid, d, f32(np.nan))
+            # continuity of each pixel with its right (cx) and lower (cy) neighbour, 0/1 floats
+            rel = f32(self.edge_rel)
+            for c, a, b in ((cxp[1:N], d[1:], d[:-1]), (cyp[W:N], d[W:], d[:-W])):
+                n = a.size
+                dd, lim = t1[:n], t2[:n]
+                np.subtract(a, b, out=dd)
+                np.abs(dd, out=dd)
+                np.minimum(a, b, out=lim)
+                lim *= rel
+                np.less_equal(dd, lim, out=c, casting="unsafe")
+            cxp[1:N] *= ws["not_row_end"]
+        # cxp[k] links pixels k-1 and k; cyp[k] links k-W and k
+        cl, cr = cxp[0:N], cxp[1:N + 1]
+        cu, cd = cyp[0:N], cyp[W:N + W]
+        nx = np.add(cl, cr, out=ws["nx"])  # continuous neighbours along x: 0, 1, 2
+        ny = np.add(cu, cd, out=ws["ny"])
+
+        # Sums of the differences to the continuous neighbours (2x the central difference inside,
+        # 1x the one-sided one at edges). Per point the x sums share one factor and the y sums
+        # another; they cancel in J^-1 [wx, wy] below, so no division by the counts is needed.
+        def sum_x(p, out):
+            g = gxp[1:N]
+            np.subtract(p[1:], p[:-1], out=g)
+            g *= cxp[1:N]
+            return np.add(gxp[0:N], gxp[1:N + 1], out=out)
+
+        def sum_y(p, out):
+            g = gyp[W:N]
+            np.subtract(p[W:], p[:-W], out=g)
+            g *= cyp[W:N]
+            return np.add(gyp[0:N], gyp[W:N + W], out=out)
+
+        ux, uy, vx, vy = sum_x(u, ws["ux"]), sum_y(u, ws["uy"]), sum_x(v, ws["vx"]), sum_y(v, ws["vy"])
+        wx, wy = sum_x(w, ws["wx"]), sum_y(w, ws["wy"])
+        tmp = t1[:N]
+        det = np.multiply(ux, vy, out=ws["det"])
+        det -= np.multiply(uy, vx, out=tmp)
+        adet = np.abs(det, out=ws["adet"])
+        ok = np.greater(adet, f32(1e-6), out=ws["ok"])
+        # gradient of w on the destination image: [gu, gv] = [wx, wy] J^-1
+        gu = np.multiply(wx, vy, out=ws["gu"])
+        gu -= np.multiply(wy, vx, out=tmp)
+        gv = np.multiply(wy, ux, out=ws["gv"])
+        gv -= np.multiply(wx, uy, out=tmp)
+        ok &= valid
+        ok &= nx > 0
+        ok &= ny > 0  # flying pixels, one-pixel slivers, degenerate maps: dropped
+        # Interior points reaching less than one source-grid step over +-1 destination pixel
+        # (destination not coarser than the source there; J^-1 = 2 S^-1 for the sums S) cover
+        # their k x k block unconditionally: the fast path, almost every point.
+        reach = np.abs(vy, out=ws["reach"])
+        reach += np.abs(uy, out=tmp)
+        ry = np.abs(vx, out=t2[:N])
+        ry += np.abs(ux, out=tmp)
+        np.maximum(reach, ry, out=reach)
+        reach *= 2 * (self.k // 2)  # |target - point| <= k/2 pixels
+        fast = np.less(reach, adet, out=ws["fast"])
+        nn = np.add(nx, ny, out=tmp)
+        fast &= nn == 4
+        fast &= ok
+        # points whose block can touch the destination image
+        Wd, Hd = self.K_dst.width, self.K_dst.height
+        m = self.k // 2 + 1
+        inside = (u > -m) & (u < Wd + m) & (v > -m) & (v < Hd + m)
+        ok &= inside
+        fast &= inside
+
+        Wp = self._Wp
+        trash = self._Hp * Wp  # this cell absorbs masked-out targets
+        buf = ws["zbuf"]
+        buf.fill(0)
+
+        def splat_setup(sel):  # sel: indices of the points to splat
+            su, sv = u[sel], v[sel]
+            fu = np.floor(su)
+            fv = np.floor(sv)
+            su -= fu  # fraction u - floor(u) in [0, 1)
+            sv -= fv
+            base = fv * f32(Wp)  # flat z-buffer index of pixel (fu, fv), exact in float32 (< 2**24)
+            base += fu
+            base += f32(self.r * Wp + self.r)
+            idet = 1 / det[sel]
+            sgu = gu[sel]
+            sgu *= idet
+            sgv = gv[sel]
+            sgv *= idet
+            return su, sv, base.astype(np.intp), sgu, sgv, idet
+
+        sel = np.flatnonzero(fast)
+        if sel.size:
+            fru, frv, ibase, sgu, sgv, _ = splat_setup(sel)
+            base_w = w[sel]
+            base_w -= sgu * fru
+            base_w -= sgv * frv  # w extrapolated on the local plane to the pixel (fu, fv)
+            for a_, b_ in self._offsets:
+                off = b_ * Wp + a_
+                if (a_, b_) == (0, 0):
+                    val = base_w
+                elif (a_, b_) == (1, 0):
+                    val = base_w + sgu
+                elif (a_, b_) == (0, 1):
+                    val = base_w + sgv
+                else:
+                    val = base_w + (sgu * f32(a_) + sgv * f32(b_))
+                np.maximum.at(buf, ibase + off if off else ibase, val)
+
+        # The rest (edge points, and interior points of strongly compressed surfaces), few: a
+        # pixel is covered when it lies within one grid step towards a continuous neighbour, or
+        # half way (the edge assumed at the midpoint) towards a discontinuous one -- there with the
+        # point's own depth, so nothing is extrapolated past the last sample of a surface.
+        ok &= ~fast
+        e = np.flatnonzero(ok)
+        if e.size:  # all targets at once: arrays (k*k, n)
+            efru, efrv, eidx, egu, egv, idet = splat_setup(e)
+            enx, eny = nx[e], ny[e]
+            eidet = idet * (enx * eny)  # undo the sums' factors: J = S / n
+            ejxu, ejxv = vy[e] * eidet / eny, -uy[e] * eidet / eny
+            ejyu, ejyv = -vx[e] * eidet / enx, ux[e] * eidet / enx
+            lxp, lxm = 0.5 + 0.5 * cr[e], -0.5 - 0.5 * cl[e]
+            lyp, lym = 0.5 + 0.5 * cd[e], -0.5 - 0.5 * cu[e]
+            A = np.array([a_ for a_, _ in self._offsets], f32)[:, None]
+            B = np.array([b_ for _, b_ in self._offsets], f32)[:, None]
+            cu_, cv_ = A - efru, B - efrv  # target minus point, destination pixels (k*k, n)
+            sx = ejxu * cu_ + ejxv * cv_
+            sy = ejyu * cu_ + ejyv * cv_
+            take = (sx < lxp) & (sx > lxm) & (sy < lyp) & (sy > lym)
+            # beyond the last sample towards a discontinuous neighbour the depth is held constant
+            # along that grid axis; along a continuous axis the local plane still applies
+            keep_x = ~(((sx > 0) & (lxp < 1)) | ((sx < 0) & (lxm > -1)))
+            keep_y = ~(((sy > 0) & (lyp < 1)) | ((sy < 0) & (lym > -1)))
+            val = (wx[e] / enx) * (sx * keep_x)
+            val += (wy[e] / eny) * (sy * keep_y)
+            val += w[e]
+            off = (B * Wp + A).astype(np.intp)
+            idx = np.where(take, eidx + off, trash)
+            np.maximum.at(buf, idx.ravel(), val.ravel())
+        zb = buf[:trash].reshape(self._Hp, Wp)[self.r:-self.r, self.r:-self.r]
+        with np.errstate(divide="ignore"):
+            out = np.divide(f32(1), zb)
+        out[zb == 0] = np.nan
+        return out
+
+    def _workspace(self) -> dict:
+        """Scratch arrays reused between calls (padded ones keep their zero borders)."""
+        ws = getattr(self, "_ws", None)
+        if ws is None:
+            r0, r1, c0, c1 = self.crop
+            H, W = r1 - r0, c1 - c0
+            N = H * W
+            f32 = np.float32
+            not_row_end = np.ones((H, W), f32)
+            not_row_end[:, -1] = 0
+            ws = {"cxp": np.zeros(N + 1, f32), "cyp": np.zeros(N + W, f32), "gxp": np.zeros(N + 1, f32),
+                  "gyp": np.zeros(N + W, f32), "not_row_end": not_row_end.ravel()[:-1].copy(),
+                  "zbuf": np.zeros(self._Hp * self._Wp + 2 * self._Wp + 2 * self.k + 2, f32)}
+            for name in ("Z", "x", "y", "t1", "t2", "nx", "ny", "ux", "uy", "vx", "vy", "wx", "wy", "det", "adet",
+                         "gu", "gv", "reach"):
+                ws[name] = np.empty(N, f32)
+            for name in ("valid", "ok", "fast"):
+                ws[name] = np.empty(N, bool)
+            self._ws = ws
+        return ws
+
+
+def _distort(x: np.ndarray, y: np.ndarray, k: np.ndarray):
+    """OpenCV distortion (k1, k2, p1, p2, k3, k4, k5, k6) on normalised coordinates, float32."""
+    k1, k2, p1, p2, k3, k4, k5, k6 = (np.float32(c) for c in k)
+    xy = x * y
+    x2 = x * x
+    y2 = y * y
+    r2 = x2 + y2
+    radial = k3 * r2
+    radial += k2
+    radial *= r2
+    radial += k1
+    radial *= r2
+    radial += 1
+    if k4 or k5 or k6:
+        den = k6 * r2
+        den += k5
+        den *= r2
+        den += k4
+        den *= r2
+        den += 1
+        radial /= den
+    xd = x * radial
+    xd += (2 * p1) * xy
+    xd += p2 * (r2 + 2 * x2)
+    yd = y * radial
+    yd += p1 * (r2 + 2 * y2)
+    yd += (2 * p2) * xy
+    return xd, yd
+
+
+def warp_depth(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, *,
+               edge_rel: float = DEFAULT_EDGE_REL) -> np.ndarray:
+    """One-off :class:`DepthWarper` call; for many frames build the warper once."""
+    return DepthWarper(K_src, K_dst, T_dst_src, edge_rel=edge_rel)(depth_src)
+
+
+# ---------------------------------------------------------------------------------------------
+# Slow references, for tests and the benchmark's comparison.
+def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, *,
+                    edge_rel: float = DEFAULT_EDGE_REL, footprint: int | None = None) -> np.ndarray:
+    """The algorithm of :class:`DepthWarper` written as a per-pixel Python loop (slow, float64).
+
+    Each rule is spelled out per point, without the vectorised version's shortcuts (flat
+    arrays, summed differences, the fast path's reach bound, the source crop); the test suite
+    checks the vectorised warp against it.
+    """
+    H, W = K_src.shape
+    Hd, Wd = K_dst.shape
+    d = np.asarray(depth_src, dtype=np.float64)
+    if footprint is None:
+        ratio = max(K_dst.fx / K_src.fx, K_dst.fy / K_src.fy)
+        footprint = max(2, int(math.ceil(ratio * 1.15)))
+    k = footprint
+    offs = range(-(k // 2) + 1, k // 2 + 1 + (k % 2))
+    u = np.full((H, W), np.nan)
+    v = np.full((H, W), np.nan)
+    w = np.zeros((H, W))
+    for i in range(H):
+        for j in range(W):
+            if not d[i, j] > 0:
+                continue
+            X = T_dst_src.apply(K_src.unproject(np.array([[j, i]], float), np.array([d[i, j]])))[0]
+            if X[2] <= 1e-6:
+                continue
+            uv = K_dst.project(X[None])[0]
+            u[i, j], v[i, j], w[i, j] = uv[0], uv[1], 1.0 / X[2]
+
+    def cont(i0, j0, i1, j1):  # one surface: both valid, depth jump at most edge_rel of the nearer
+        if not (0 <= i1 < H and 0 <= j1 < W):
+            return False
+        a, b = d[i0, j0], d[i1, j1]
+        return bool(w[i0, j0] > 0 and w[i1, j1] > 0 and abs(b - a) <= edge_rel * min(a, b))
+
+    zbuf = np.zeros((Hd, Wd))
+    for i in range(H):
+        for j in range(W):
+            if w[i, j] <= 0:
+                continue
+            grads, conts = [], []
+            for (di, dj) in ((0, 1), (1, 0)):  # x, then y
+                n, acc, c = 0, np.zeros(3), []
+                for s in (-1, 1):
+                    ii, jj = i + s * di, j + s * dj
+                    c.append(cont(i, j, ii, jj))
+                    if c[-1]:
+                        acc += s * np.array([u[ii, jj] - u[i, j], v[ii, jj] - v[i, j], w[ii, jj] - w[i, j]])
+                        n += 1
+                grads.append((n, acc / max(n, 1)))
+                conts.append(c)  # [minus side, plus side]
+            (nx, gx), (ny, gy) = grads
+            if nx == 0 or ny == 0:
+                continue  # flying pixel / one-pixel sliver
+            J = np.array([[gx[0], gy[0]], [gx[1], gy[1]]])  # d(u, v) / d(source x, y)
+            if abs(np.linalg.det(J)) <= 1e-6 / (nx * ny):
+                continue
+            Jinv = np.linalg.inv(J)
+            lim = {(0, -1): 1.0 if conts[0][0] else 0.5, (0, 1): 1.0 if conts[0][1] else 0.5,
+                   (1, -1): 1.0 if conts[1][0] else 0.5, (1, 1): 1.0 if conts[1][1] else 0.5}
+            fu, fv = math.floor(u[i, j]), math.floor(v[i, j])
+            for b in offs:
+                for a in offs:
+                    c = np.array([fu + a - u[i, j], fv + b - v[i, j]])
+                    delta = Jinv @ c  # source-grid offset of the target pixel
+                    inside, val = True, w[i, j]
+                    for ax, g in ((0, gx), (1, gy)):
+                        side = 1 if delta[ax] > 0 else -1
+                        if not (abs(delta[ax]) < lim[(ax, side)]):
+                            inside = False
+                        if lim[(ax, side)] == 1:  # towards a continuous neighbour: local plane
+                            val += g[2] * delta[ax]
+                    tu, tv = fu + a, fv + b
+                    if inside and 0 <= tu < Wd and 0 <= tv < Hd:
+                        zbuf[tv, tu] = max(zbuf[tv, tu], val)
+    out = np.full((Hd, Wd), np.nan, np.float32)
+    out[zbuf > 0] = (1.0 / zbuf[zbuf > 0]).astype(np.float32)
+    return out
+
+
+def warp_depth_naive_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
+                          T_dst_src: Transform) -> np.ndarray:
+    """The straightforward per-pixel loop: project each source pixel, nearest pixel, z-buffer.
+
+    No hole filling and no interpolation; the benchmark's baseline for speed, not a reference.
+    """
+    H, W = K_src.shape
+    Hd, Wd = K_dst.shape
+    out = np.full((Hd, Wd), np.inf)
+    R, t = T_dst_src.R, T_dst_src.t
+    rays = K_src.ray_grid()
+    for i in range(H):
+        for j in range(W):
+            z = depth_src[i, j]
+            if not z > 0:
+                continue
+            X = R @ (rays[i, j] * z) + t
+            if X[2] <= 0:
+                continue
+            uv = K_dst.project(X[None])[0]
+            tu, tv = int(round(uv[0])), int(round(uv[1]))
+            if 0 <= tu < Wd and 0 <= tv < Hd and X[2] < out[tv, tu]:
+                out[tv, tu] = X[2]
+    out[~np.isfinite(out)] = np.nan
+    return out.astype(np.float32)

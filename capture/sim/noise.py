@@ -77,7 +77,7 @@ class TofNoise:
     z0_m: float = 0.5
     flying_jump_m: float = 0.05
     flying_fraction: float = 0.5
-    min_amplitude: float = 0.006
+    min_amplitude: float = 0.003
     min_depth_m: float = 0.5
     max_depth_m: float = 8.0
     model: str = "tof"

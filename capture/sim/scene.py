@@ -131,8 +131,8 @@ def _static_actor(name: str, parts: list[Part], poses: list[np.ndarray]) -> Acto
 
 
 def _room(ids: _Ids, *, back_y: float, half_width: float = 2.8, height: float = 3.0) -> Actor:
-    floor_mat = ids.new(Material(fine_m=0.05, coarse_m=0.25, patch_m=0.8, dark_fraction=0.05, flat_fraction=0.1))
-    wall_mat = [ids.new(Material(fine_m=0.06, coarse_m=0.3, patch_m=0.9, dark_fraction=0.1, flat_fraction=0.2))
+    floor_mat = ids.new(Material(fine_m=0.05, coarse_m=0.25, patch_m=0.8, dark_fraction=0.04, flat_fraction=0.04))
+    wall_mat = [ids.new(Material(fine_m=0.06, coarse_m=0.3, patch_m=0.7, dark_fraction=0.06, flat_fraction=0.08))
                 for _ in range(3)]
     depth = back_y + 1.5
     parts = [Part(*quad(2 * half_width, depth), floor_mat),

@@ -290,6 +290,8 @@ class AzureKinectRecording:
 
 
 def _one_line(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.errno == 5:  # FFmpeg's AVERROR(EIO): it could not parse the start
+        return "truncated, or not a Matroska file"
     return " ".join(str(exc).split())[:300]
 
 

@@ -27,8 +27,7 @@ import numpy as np
 from capture.camera import Intrinsics, Transform
 from capture.drivers.base import Frame, SensorDescription, StreamDescription
 from capture.errors import SessionFormatError
-from depthbench.errors import UnsafePathError
-from depthbench.fsutil import safe_join
+from capture.session import image_structure_problem
 
 DEFAULT_INTRINSICS = Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
 DEPTH_SCALE = 5000.0   # counts per metre
@@ -85,14 +84,18 @@ class TumFolder:
 
     def _read(self, stream: str, rel: str) -> np.ndarray:
         list_file = self.root / ("depth.txt" if stream == "depth" else "rgb.txt")
-        try:
-            path = safe_join(self.root, rel, source=list_file)
-        except UnsafePathError as exc:
-            raise SessionFormatError(str(exc)) from None
+        # Lexical check (no symlink resolution: TUM folders are often links into a dataset store).
+        parts = rel.replace("\\", "/").split("/")
+        if not rel or os.path.isabs(rel) or rel.startswith(("/", "\\")) or ".." in parts or "\x00" in rel:
+            raise SessionFormatError(f"{list_file}: path {rel!r} escapes the folder {self.root}")
+        path = self.root / rel
         data = np.fromfile(path, np.uint8) if path.is_file() else None
         if data is None:
             raise SessionFormatError(f"{path}: missing (listed in {list_file.name})")
-        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+        problem = image_structure_problem(data.tobytes())  # before libpng, which prints to stderr
+        if problem:
+            raise SessionFormatError(f"{path}: {problem}")
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
         info = self.description.streams[stream]
         if img is None:
             raise SessionFormatError(f"{path}: not a readable image (truncated or corrupt)")

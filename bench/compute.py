@@ -79,8 +79,11 @@ def _open(root: str, checksum: str) -> AlignedDataset:
     return ds
 
 
-def _denoise(method: Denoiser, frame, K, task: FrameTask) -> np.ndarray:
+def _denoise(method: Denoiser, frame, K, task: FrameTask) -> np.ndarray | None:
+    """The method's output, or None when the frame lacks an input the method needs (colour)."""
     lq = frame.lq_depth
+    if getattr(method, "uses_color", False) and frame.lq_color is None:
+        return None
     if not np.isfinite(lq).any():     # nothing to denoise: the method leaves every pixel empty
         return np.full(lq.shape, np.nan, np.float32)
     try:
@@ -139,8 +142,15 @@ def compute_frame(task: FrameTask) -> FrameOutput:
                     pred = _denoise(method, fr, K, task)
             rows = []
             for name, ref in scored.items():
-                metrics, bins = frame_metrics(pred, ref, K, roi=fr.roi, config=cfg, planes=planes[name])
+                if pred is None:     # not applicable to this frame: every metric NaN, the reference still counted
+                    metrics = {k: np.nan for k in UNITS}
+                    metrics["n_reference"] = float(planes[name].index.size)
+                    bins = []
+                else:
+                    metrics, bins = frame_metrics(pred, ref, K, roi=fr.roi, config=cfg, planes=planes[name])
                 rows += _rows(method, task, name, metrics, bins)
+            if pred is None:
+                pred = np.full(fr.lq_depth.shape, np.nan, np.float32)
             df = pd.DataFrame.from_records(rows, columns=_COLUMNS)
             out.rows[method.key] = df.astype({"schema_version": "int32", "frame": "int64"})
             if task.preview:

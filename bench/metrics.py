@@ -190,7 +190,7 @@ def normal_map(depth: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         c = c / norm
         c = np.where(c[..., 2:3] > 0, -c, c)
-    n[1:-1, 1:-1] = np.where(norm > 0, c, np.nan)
+    n[1:-1, 1:-1] = np.where((norm > 0) & np.isfinite(z[1:-1, 1:-1, None]), c, np.nan)
     return n
 
 

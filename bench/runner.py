@@ -51,10 +51,13 @@ from bench.errors import BenchError
 from bench.metrics import MetricConfig
 from depthbench.errors import OutputExistsError
 from methods.base import Denoiser, available, get
+from methods.errors import UnknownMethodError
 
 log = logging.getLogger(__name__)
 
 EXECUTORS = ("process", "dask")
+#: Short names of the seed report (Table I) for the registered filters.
+ALIASES = {"bf": "bilateral", "jbf": "joint_bilateral", "rgf": "rolling_guidance"}
 
 
 class EmptyReferenceError(BenchError):
@@ -102,15 +105,22 @@ def resolve_methods(methods: str | Sequence[str | Denoiser]) -> list[Denoiser]:
             return [cls() for cls in available().values()]
         methods = names
     out: list[Denoiser] = []
+    known = available()
     for m in methods:
-        out.append(get(m) if isinstance(m, str) else m)
+        if isinstance(m, str):
+            try:
+                m = get(m if m in known else ALIASES.get(m, m))
+            except UnknownMethodError as exc:
+                raise UnknownMethodError(f"--methods: {exc}; aliases: "
+                                         f"{', '.join(f'{a}={n}' for a, n in ALIASES.items())}") from None
+        out.append(m)
     if not out:
-        raise BenchError("no method given (use 'all' or names such as raw,bf)")
+        raise BenchError("--methods: no method given (use 'all' or names such as raw,bf)")
     keys = [m.key for m in out]
     names = [m.name for m in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise BenchError(f"method {dup[0]!r} given twice ({', '.join(k for k in keys if k.startswith(dup[0] + '@'))})")
+        raise BenchError(f"--methods: method {dup[0]!r} given twice ({', '.join(k for k in keys if k.startswith(dup[0] + '@'))})")
     return out
 
 
@@ -333,7 +343,7 @@ def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started
                                        config, preview=(i == mid)))
     n_todo = sum(len(t.methods) for t in tasks)
     ex = _executor(executor, jobs, workers, scheduler, max(len(tasks), 1))
-    log.info("bench: %d results to compute, %d cached, on %s", n_todo, reused, ex.name)
+    log.debug("bench: %d results to compute, %d cached, on %s", n_todo, reused, ex.name)
     for ds in ds_list:   # the inputs of the qualitative figure
         p = R.preview_path(work, ds.checksum)
         if not p.exists():

@@ -1,0 +1,132 @@
+"""``depthbench bench ...``: run the benchmark, rebuild the leaderboard, import external aligned data.
+
+A thin parser over :func:`bench.runner.run_benchmark`, :func:`bench.report.write_report` and
+:func:`align.external.import_ddrnet`.
+"""
+from __future__ import annotations
+
+import argparse
+
+_RUN_EPILOG = """\
+The results folder (--out):
+  new or empty           built aside and published when the run is complete (a failed run leaves nothing)
+  a results folder       continued: cached (method version, dataset checksum, frame) results are reused,
+                         new ones added; the table keeps earlier runs' methods/datasets that this run does
+                         not name, and replaces those it recomputes (a changed method version or dataset)
+  anything else          refused unless --force (which replaces it and drops its cache)
+
+examples:
+  depthbench bench run --data aligned/ --methods all --out results/
+  depthbench bench run --data A1 --data A2 --methods raw,bf,rgf --out results/ --workers 2
+  depthbench bench import-ddrnet ../shared/data/real/ddrnet_person --out ddrnet_aligned/
+"""
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    return v
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not v > 0 or v != v or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return v
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "bench", help="score methods against the reference and write the leaderboard",
+        description="Score denoising methods on aligned datasets (MSE/RMSE/MAE, DDD's plane-fit RMSE, fill rate), "
+                    "locally or on a Dask cluster, and write the leaderboard (Markdown + self-contained HTML).")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=type(parser))
+    sub.required = True
+
+    p = sub.add_parser("run", help="run methods x datasets x frames into a results folder",
+                       description="Run every method on every frame of every dataset, score it against the HQ "
+                                   "reference (and the truth of simulated data), cache each result and write "
+                                   "RESULTS/results.parquet and the leaderboard.",
+                       epilog=_RUN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", action="append", required=True, metavar="ALIGNED",
+                   help="aligned dataset folder, or a folder of them (repeatable)")
+    p.add_argument("--methods", default="all",
+                   help="'all' (every registered method) or a comma-separated list, e.g. raw,bf,jbf,rgf "
+                        "(bf/jbf/rgf name bilateral/joint_bilateral/rolling_guidance); default: all")
+    p.add_argument("--out", required=True, metavar="RESULTS", help="results folder (see below)")
+    ex = p.add_mutually_exclusive_group()
+    ex.add_argument("--jobs", type=_positive_int, metavar="N",
+                    help="local worker processes (default: the number of CPUs; 1 = in this process)")
+    ex.add_argument("--workers", type=_positive_int, metavar="N",
+                    help="run on a local Dask cluster with N worker processes")
+    ex.add_argument("--scheduler", metavar="ADDRESS",
+                    help="run on the Dask cluster whose scheduler listens at ADDRESS (tcp://host:8786); "
+                         "datasets must be readable at the same paths on its workers")
+    p.add_argument("--radius-mm", type=_positive_float, default=5.0, metavar="MM",
+                   help="plane-fit neighbourhood radius in mm (DDD: 5; default 5)")
+    p.add_argument("--no-report", action="store_true", help="write the table only, not the leaderboard")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar on stderr (default: when stderr is a terminal)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an --out that cannot be continued (another schema version or metric parameters, "
+                        "or not a results folder); drops its cache")
+    p.set_defaults(func=_run)
+
+    p = sub.add_parser("report", help="rebuild the leaderboard from a results folder's table",
+                       description="Rebuild RESULTS/leaderboard.md, leaderboard.html and figures/ from "
+                                   "RESULTS/results.parquet (and the depth previews for the qualitative figure). "
+                                   "Nothing is recomputed.")
+    p.add_argument("results", metavar="RESULTS", help="results folder written by 'depthbench bench run'")
+    p.add_argument("--bootstrap", type=_positive_int, default=2000, metavar="N",
+                   help="bootstrap resamples for the 95 %% intervals (default 2000)")
+    p.add_argument("--seed", type=int, default=0, help="bootstrap random seed (default 0)")
+    p.set_defaults(func=_report)
+
+    p = sub.add_parser("import-ddrnet", help="import DDRNet's raw/fused depth pairs as aligned datasets",
+                       description="Import the DDRNet sample layout (per group: depth_map/, high_quality_depth/, "
+                                   "mask/, optional color_map/; uint16 PNG in mm, 640x480) as aligned datasets: raw "
+                                   "depth as LQ, the fused depth as reference, the mask as ROI, the authors' "
+                                   "intrinsics (fx 536.628, fy 536.606, cx 310.591, cy 234.759).")
+    p.add_argument("src", metavar="SRC", help="a group folder, or a folder of groups (one dataset per group)")
+    p.add_argument("--out", required=True, metavar="ALIGNED", help="output: the dataset, or a folder of datasets")
+    p.add_argument("--force", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_import_ddrnet)
+
+
+def _run(args) -> int:
+    from bench.metrics import MetricConfig
+    from bench.runner import run_benchmark
+
+    config = MetricConfig(radius_m=args.radius_mm / 1000.0)
+    res = run_benchmark(args.data, args.methods, args.out, config=config, jobs=args.jobs, workers=args.workers,
+                        scheduler=args.scheduler, force=args.force, progress=args.progress, report=not args.no_report)
+    print(f"{res.table_path}: {len(res.table)} rows ({res.computed} results computed, {res.reused} reused from the "
+          "cache)")
+    for s in res.superseded:
+        print(f"superseded: {s}")
+    if res.report is not None:
+        print(f"leaderboard: {res.report.markdown}  (HTML: {res.report.html})")
+    return 0
+
+
+def _report(args) -> int:
+    from bench.report import write_report
+
+    paths = write_report(args.results, n_boot=args.bootstrap, seed=args.seed)
+    print(f"leaderboard: {paths.markdown}  (HTML: {paths.html}; {len(paths.figures)} figures)")
+    return 0
+
+
+def _import_ddrnet(args) -> int:
+    from align.external import import_ddrnet
+
+    for p in import_ddrnet(args.src, args.out, force=args.force):
+        print(p)
+    return 0

@@ -16,6 +16,8 @@ Threads::
   intervals over 1.5 frame periods), removes and counts duplicates (a frame number seen again)
   and frames whose timestamps go backwards. When the queue is full the frame is dropped and
   counted as a writer drop (also part of ``dropped_frames``): the sensor is never blocked.
+* When the queue is over a quarter full the encoders write PNGs uncompressed (lossless, same
+  pixels, larger) until it drains: CPU, not the disk, is the bottleneck on small machines.
 * A full disk (ENOSPC) stops recording: the reserve file made at the start is deleted so the
   manifest can still be written, the session is closed readable and :class:`RecordingError`
   says what happened.
@@ -71,6 +73,7 @@ class StreamStats:
     rejected: int = 0        # frames with a frame number or timestamp going backwards, removed
     writer_dropped: int = 0  # received but not written: the queue was full
     lost_in_flight: int = 0  # received but not indexed when recording stopped on an error
+    fast_encoded: int = 0    # frames written as uncompressed PNG because the writer was falling behind
     bytes: int = 0           # encoded bytes written
 
 
@@ -139,6 +142,10 @@ class RecordResult:
     def writer_dropped(self) -> int:
         return sum(s.writer_dropped for s in self.streams.values())
 
+    @property
+    def fast_encoded(self) -> int:
+        return sum(s.fast_encoded for s in self.streams.values())
+
 
 @dataclass
 class _Job:
@@ -176,8 +183,8 @@ class _Sequencer:
 # ----------------------------------------------------------------------------- the recorder
 class _Recorder:
     def __init__(self, rig: Rig, out: Path, *, seconds: float | None, force: bool, writers: int, buffer_s: float,
-                 fsync: bool, progress: TextIO | None, progress_every_s: float) -> None:
-        self.rig, self.out, self.seconds, self.force = rig, out, seconds, force
+                 fsync: bool, progress: TextIO | None, progress_every_s: float, adaptive: bool) -> None:
+        self.rig, self.out, self.seconds, self.force, self.adaptive = rig, out, seconds, force, adaptive
         self.n_writers, self.buffer_s, self.fsync = writers, buffer_s, fsync
         self.progress, self.progress_every_s = progress, progress_every_s
         self.drivers: dict[str, Driver] = {}
@@ -250,6 +257,8 @@ class _Recorder:
         _make_reserve(reserve)
         total_fps = sum(st.fps for d in self.descriptions.values() for st in d.streams.values())
         self.queue: queue.Queue[_Job | None] = queue.Queue(maxsize=max(8, int(total_fps * self.buffer_s)))
+        # Falling behind (queue over a quarter full): encode PNGs uncompressed until it drains.
+        self.fast_above = self.queue.maxsize // 4 if self.adaptive else self.queue.maxsize + 1
         self.sequencer = _Sequencer(self.writer)
         encoders = [threading.Thread(target=self._encode_loop, name=f"encoder-{i}", daemon=True)
                     for i in range(self.n_writers)]
@@ -347,8 +356,10 @@ class _Recorder:
                 self.sequencer.done(key, job.seq, None, stats)
                 continue
             f = job.frame
+            fast = self.queue.qsize() > self.fast_above
             try:
-                rel, sha = self.writer.write_frame_file(job.sensor, job.stream, f.frame_number, f.image)
+                rel, sha = self.writer.write_frame_file(job.sensor, job.stream, f.frame_number, f.image, fast=fast)
+                stats.fast_encoded += fast
                 nbytes = (self.writer.root / rel).stat().st_size
                 self.sequencer.done(key, job.seq, (f.frame_number, f.device_timestamp_us, f.host_timestamp_us,
                                                    rel, sha, nbytes), stats)
@@ -409,7 +420,8 @@ class _Recorder:
         drops = sum(s.dropped for s in r.streams.values())
         dups = sum(s.duplicates for s in r.streams.values())
         base = (f"{r.path}: {r.frames} frames in {r.wall_s:.1f} s ({r.frames_per_s:.1f} frames/s, {r.mb_per_s:.1f} MB/s), "
-                f"{drops} dropped ({r.writer_dropped} by the writer), {dups} duplicates removed")
+                f"{drops} dropped ({r.writer_dropped} by the writer), {dups} duplicates removed"
+                + (f", {r.fast_encoded} frames written uncompressed to keep up" if r.fast_encoded else ""))
         if self.fatal is not None:
             fix = ("; run 'depthbench capture repair' on it" if r.status != "complete" else "")
             return (f"{self.fatal[1]}: recording stopped after {r.wall_s:.1f} s; the session keeps {r.frames} frames "
@@ -448,7 +460,7 @@ def default_writers() -> int:
 
 def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, force: bool = False,
            writers: int | None = None, buffer_s: float = 1.0, fsync: bool = False,
-           progress: TextIO | None = None, progress_every_s: float = 1.0) -> RecordResult:
+           progress: TextIO | None = None, progress_every_s: float = 1.0, adaptive: bool = True) -> RecordResult:
     """Record every sensor of ``rig`` into the session folder ``out``.
 
     Args:
@@ -461,6 +473,8 @@ def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, fo
             frames are dropped and counted as writer drops.
         fsync: fsync every frame and row (survives power loss, slower).
         progress: stream for the live status line (per-stream frame rate and drops), or None.
+        adaptive: while the queue is over a quarter full, write PNGs uncompressed (same pixels,
+            larger files, ~8x less CPU) so a slow machine keeps up instead of dropping frames.
 
     Returns a :class:`RecordResult`. Raises :class:`RigError`/:class:`DeviceError` before
     anything is written (bad rig, device missing, output exists), and :class:`RecordingError`
@@ -472,7 +486,8 @@ def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, fo
     if writers is not None and writers < 1:
         raise RecordingError(f"--writers must be at least 1, got {writers}")
     rec = _Recorder(rig, Path(out), seconds=seconds, force=force, writers=writers or default_writers(),
-                    buffer_s=buffer_s, fsync=fsync, progress=progress, progress_every_s=progress_every_s)
+                    buffer_s=buffer_s, fsync=fsync, progress=progress, progress_every_s=progress_every_s,
+                    adaptive=adaptive)
     rec.open_drivers()
     try:
         result = rec.run()

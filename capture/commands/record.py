@@ -26,6 +26,8 @@ def add_parser(sub) -> None:
                    help=f"PNG encoder threads (default: one per core, at least 2; here {default_writers()})")
     p.add_argument("--buffer", type=float, default=1.0, metavar="S",
                    help="seconds of frames the write queue holds before frames are dropped as writer drops (default 1)")
+    p.add_argument("--no-adaptive", action="store_true",
+                   help="always compress PNGs (default: write them uncompressed while the writer is falling behind)")
     p.add_argument("--fsync", action="store_true", help="fsync every frame and index row (survives power loss; slower)")
     p.add_argument("--quiet", action="store_true", help="no live progress line")
     p.set_defaults(func=run)
@@ -41,7 +43,7 @@ def run(args) -> int:
     try:
         result = record(rig, args.out, seconds=args.seconds, force=args.force, writers=args.writers,
                         buffer_s=args.buffer, fsync=args.fsync, progress=None if args.quiet else sys.stderr,
-                        progress_every_s=1.0 if sys.stderr.isatty() else 5.0)
+                        progress_every_s=1.0 if sys.stderr.isatty() else 5.0, adaptive=not args.no_adaptive)
     finally:
         signal.signal(signal.SIGTERM, previous)
     print(result.message)

@@ -45,13 +45,14 @@ def test_registered_and_plays_in_real_time_with_source_numbers_and_images(source
         assert np.array_equal(f.image, r[3]) and f.image.dtype == np.uint16
     color = [f for f in frames if f.stream == "color"]
     assert np.array_equal(color[3].image, written[("lq", "color")][3][3])
-    # real time: frame k arrives no earlier than k periods after frame 0, and not much later
+    # real time: frame k is delivered no earlier than its recorded time after the playback start, and
+    # (on a machine that is not overloaded) soon after it
     host = np.array([f.host_timestamp_us for f in depth])
-    due = (np.array([r[2] for r in written[("lq", "depth")]]) - written[("lq", "depth")][0][2])
-    late = (host - host[0]) - due
-    assert late.min() >= -1_000, late  # never early (1 ms for clock reads)
-    assert np.median(late) < 15_000, late
-    assert 0.30 <= (host[-1] - host[0]) * 1e-6 <= 0.45  # 11 periods of 33.3 ms = 0.367 s
+    due = drv._group.epoch_us + (np.array([r[2] for r in written[("lq", "depth")]]) - written[("lq", "depth")][0][2])
+    late = host - due
+    assert late.min() >= 0, late
+    assert np.median(late) < 30_000, late
+    assert (host[-1] - host[0]) * 1e-6 >= 11 / 30 - 0.03  # 11 periods of 33.3 ms
 
 
 def test_speed_and_loop(source):
@@ -103,8 +104,9 @@ def test_two_replays_of_one_source_keep_their_relative_timing(source):
     [t.join() for t in threads]
     t_lq = np.array([f.host_timestamp_us for f in out["lq"] if f.stream == "depth"])
     t_hq = np.array([f.host_timestamp_us for f in out["hq"] if f.stream == "depth"])
+    assert lq._group is hq._group  # one start instant for both
     shift = np.median(t_hq - t_lq)  # the source has hq 10 ms after lq
-    assert 5_000 < shift < 15_000, shift
+    assert 10_000 - 5_000 < shift < 10_000 + 20_000, shift
 
 
 @pytest.mark.parametrize("kwargs, streams, match", [

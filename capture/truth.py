@@ -26,14 +26,13 @@ import pandas as pd
 from capture.camera import Intrinsics, Transform
 from capture.errors import CalibrationError, SessionFormatError
 from capture.session import decode_depth
+from data_manifests import schema_problem
 from depthbench.errors import UnsafePathError
 from depthbench.fsutil import safe_join, sha256_bytes
 
 TRUTH_FORMAT = "depthbench.truth"
 TRUTH_COLUMNS = ("frame_number", "scene_time_us", "device_timestamp_us", "host_timestamp_us", "host_jitter_us",
                  "file", "sha256")
-_REQUIRED = ("format", "format_version", "time_shift_us", "T_lq_hq", "reference_sensor", "target_sensor",
-             "truth_depth_unit_m", "clocks", "sensors", "effects")
 
 
 @dataclass
@@ -167,9 +166,9 @@ def _check_info(info, path: Path) -> None:
         raise SessionFormatError(f"{path}: 'format' must be {TRUTH_FORMAT!r}")
     if str(info.get("format_version", "")).split(".")[0] != "1":
         raise SessionFormatError(f"{path}: unknown format version {info.get('format_version')!r}")
-    for key in _REQUIRED:
-        if key not in info:
-            raise SessionFormatError(f"{path}: missing field {key!r}")
+    problem = schema_problem("truth", info)
+    if problem:
+        raise SessionFormatError(f"{path}: {problem}")
     try:
         Transform.from_list(info["T_lq_hq"])
     except CalibrationError as exc:

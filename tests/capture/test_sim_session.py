@@ -97,7 +97,7 @@ def test_truth_reader_errors(tmp_path):
         read_truth(tmp_path)
     del info["T_lq_hq"]
     (tmp_path / "truth" / "truth.json").write_text(json.dumps(info))
-    with pytest.raises(SessionFormatError, match="missing field 'T_lq_hq'"):
+    with pytest.raises(SessionFormatError, match="'T_lq_hq' is a required property"):
         read_truth(tmp_path)
 
 

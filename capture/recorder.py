@@ -483,6 +483,8 @@ def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, fo
     """
     if seconds is not None and not seconds > 0:
         raise RecordingError(f"--seconds must be positive, got {seconds}")
+    if not buffer_s > 0:
+        raise RecordingError(f"--buffer must be positive, got {buffer_s}")
     if writers is not None and writers < 1:
         raise RecordingError(f"--writers must be at least 1, got {writers}")
     rec = _Recorder(rig, Path(out), seconds=seconds, force=force, writers=writers or default_writers(),

@@ -28,6 +28,10 @@ real device refuses a mode it cannot do. Replays of one source session opened to
 one start instant, so the relative timing of their sensors (e.g. a simulated LQ/HQ time
 shift) is kept.
 
+Host timestamps are the real arrival times on this machine (CLOCK_MONOTONIC), so they carry the
+machine's scheduling jitter like a live recording; frame numbers and device timestamps are the
+source's (shifted by whole loops when looping).
+
 What was injected is in :attr:`ReplayDriver.injected` (per stream: ``dropped``, ``duplicated``,
 and the frame numbers), for tests to compare with what the recorder reports.
 """

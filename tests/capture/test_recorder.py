@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from capture.errors import RecordingError
+from capture.errors import RecordingError, RigError
 from capture.recorder import StreamCounter, missing_between, record
 from capture.repair import repair
 from capture.rig import load_rig
@@ -94,6 +94,10 @@ def test_seconds_limit_and_progress_line(source, tmp_path):
     assert 15 <= result.streams["lq/depth"].frames <= 30
     text = progress.getvalue()
     assert "lq/depth" in text and "fps" in text and "drop 0" in text and "MB/s" in text
+    for bad in ({"seconds": 0}, {"seconds": 1, "buffer_s": 0}, {"seconds": 1, "writers": 0}):
+        with pytest.raises(RecordingError):
+            record(load_rig(tmp_path / "rig.toml"), tmp_path / "out2", **bad)
+    assert not (tmp_path / "out2").exists()
 
 
 def test_output_that_exists_is_never_touched(source, tmp_path, cli):
@@ -132,13 +136,24 @@ BAD_RIGS = {
 
 
 @pytest.mark.parametrize("name", sorted(BAD_RIGS))
-def test_bad_rig_files_are_one_line_errors(tmp_path, cli, name):
+def test_bad_rig_files_are_refused_with_one_line(tmp_path, name):
+    text, problem = BAD_RIGS[name]
+    rig = tmp_path / f"{name}.toml"
+    rig.write_text(text)
+    with pytest.raises(RigError) as err:
+        record(load_rig(rig), tmp_path / "out", seconds=1)
+    message = str(err.value)
+    assert "\n" not in message and str(rig) in message and problem in message, message
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("name", ["unknown_driver", "missing_serial", "replay_without_session"])
+def test_bad_rig_files_through_the_cli(tmp_path, cli, name):
     text, problem = BAD_RIGS[name]
     rig = tmp_path / f"{name}.toml"
     rig.write_text(text)
     r = cli("capture", "record", "--rig", rig, "--out", tmp_path / "out", "--seconds", "1")
-    assert_one_line_error(r, problem)
-    assert str(rig) in r.stderr
+    assert_one_line_error(r, str(rig), problem)
     assert not (tmp_path / "out").exists()
 
 

@@ -131,3 +131,56 @@ def test_bad_options_and_missing_source(tmp_path):
         ReplayDriver.check_config(config(tmp_path, drop_frames="5"))
     with pytest.raises(DeviceError, match="cannot replay"):
         ReplayDriver(config(tmp_path / "none")).open()
+
+
+# ----------------------------------------------------------------------------- the driver interface and registry
+def test_registry_lists_drivers_and_refuses_unknown_ones():
+    from capture.drivers import Driver, enumerate_devices, known_drivers, register
+    from capture.drivers.base import _REGISTRY
+
+    assert {"realsense", "oakd", "replay"} <= set(known_drivers())
+    with pytest.raises(RigError, match="unknown sensor driver 'nope'.*known: .*replay"):
+        driver_class("nope")
+
+    class Broken(Driver):
+        name = "broken_for_test"
+
+        @classmethod
+        def enumerate(cls):
+            raise RuntimeError("SDK exploded\nsecond line")
+
+        def open(self):
+            raise NotImplementedError
+
+        def read(self, *, timeout_s):
+            return None
+
+        def close(self):
+            pass
+
+    register(Broken)
+    try:
+        listing = {li.driver: li for li in enumerate_devices(["replay", "broken_for_test"])}
+        assert listing["replay"].devices == [] and listing["replay"].problem is None
+        assert listing["broken_for_test"].problem == "RuntimeError: SDK exploded"
+    finally:
+        _REGISTRY.pop("broken_for_test")
+
+
+def test_descriptions_check_themselves_and_write_manifest_entries():
+    from capture.camera import Intrinsics
+    from capture.drivers import SensorDescription, StreamDescription
+
+    K = Intrinsics(64, 48, 50.0, 50.0, 31.5, 23.5)
+    with pytest.raises(DeviceError, match="positive depth_unit_m"):
+        StreamDescription("depth", "depth", 64, 48, 30.0, "png16", K)
+    with pytest.raises(DeviceError, match="unknown encoding"):
+        StreamDescription("color", "color", 64, 48, 30.0, "webp", K)
+    d = SensorDescription("m", "s1", {"depth": StreamDescription("depth", "depth", 64, 48, 30.0, "png16", K, 0.001)},
+                          firmware="1.2", technology="stereo", clock={"domain": "hardware_clock"})
+    entry = d.to_manifest("lq")
+    assert entry["streams"]["depth"]["depth_unit_m"] == 0.001 and entry["firmware"] == "1.2"
+    from data_manifests import schema_problem
+    m = {"format": "depthbench.session", "format_version": "1.0", "name": "x", "time_base": "host",
+         "sensors": {"lq": {**entry, "frames": "lq/frames.csv"}}}
+    assert schema_problem("session", m) is None

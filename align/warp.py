@@ -32,6 +32,7 @@ shadows, outside the source's view, edges).
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
@@ -322,8 +323,9 @@ class DepthWarper:
         return out
 
     def _workspace(self) -> dict:
-        """Scratch arrays reused between calls (padded ones keep their zero borders)."""
-        ws = getattr(self, "_ws", None)
+        """Scratch arrays reused between calls (padded ones keep their zero borders); one set per thread."""
+        local = self.__dict__.setdefault("_local", threading.local())
+        ws = getattr(local, "ws", None)
         if ws is None:
             r0, r1, c0, c1 = self.crop
             H, W = r1 - r0, c1 - c0
@@ -339,7 +341,7 @@ class DepthWarper:
                 ws[name] = np.empty(N, f32)
             for name in ("valid", "ok", "fast"):
                 ws[name] = np.empty(N, bool)
-            self._ws = ws
+            local.ws = ws
         return ws
 
 
@@ -486,3 +488,18 @@ def warp_depth_naive_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intri
                 out[tv, tu] = X[2]
     out[~np.isfinite(out)] = np.nan
     return out.astype(np.float32)
+
+
+def register_color(color: np.ndarray, depth: np.ndarray, K_depth: Intrinsics, K_color: Intrinsics,
+                   T_color_depth: Transform) -> np.ndarray:
+    """Colour resampled onto the depth image: each depth pixel's 3D point projected into the colour
+    camera and sampled (bilinear). ``(H_depth, W_depth, 3)`` uint8; black where there is no depth."""
+    P = K_depth.depth_to_points(depth).reshape(-1, 3)
+    uv = K_color.project(T_color_depth.apply(P)).astype(np.float32)
+    bad = ~np.all(np.isfinite(uv), axis=1)
+    uv[bad] = -1e4
+    mx = uv[:, 0].reshape(K_depth.shape)
+    my = uv[:, 1].reshape(K_depth.shape)
+    import cv2
+
+    return cv2.remap(color, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)

@@ -1,0 +1,213 @@
+"""Colour features: detection, matching, and lifting HQ feature pixels to 3D (the set U of eq. 31).
+
+Pure numpy/OpenCV, no I/O. Detection runs once per frame; everything downstream (matching,
+the time-shift loss, the extrinsic fit) reuses the same :class:`Features`.
+
+* :func:`detect` -- SIFT (default), ORB or AKAZE keypoints and descriptors on a colour image.
+* :func:`match` -- nearest-neighbour matching with Lowe's ratio test and a cross-check (a pair
+  is kept only when each keypoint is the other's nearest neighbour).
+* :func:`lift` -- HQ colour keypoints to 3D with the HQ depth registered to the HQ colour camera
+  (``align.warp``); keypoints on depth discontinuities, or without depth, are refused.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from align.errors import AlignError
+from capture.camera import Intrinsics
+
+FEATURES = ("sift", "orb", "akaze")
+
+
+@dataclass(frozen=True)
+class Features:
+    """Keypoints of one image.
+
+    Attributes:
+        xy: ``(N, 2)`` float32 pixel coordinates (OpenCV convention, distorted image).
+        descriptors: ``(N, D)`` uint8 (ORB/AKAZE, binary) or float32 (SIFT).
+        kind: ``"sift"``, ``"orb"`` or ``"akaze"``.
+    """
+
+    xy: np.ndarray
+    descriptors: np.ndarray
+    kind: str
+
+    def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+    @property
+    def binary(self) -> bool:
+        return self.kind in ("orb", "akaze")
+
+
+def _detector(kind: str, max_features: int):
+    if kind == "sift":
+        return cv2.SIFT_create(nfeatures=max_features)
+    if kind == "orb":
+        return cv2.ORB_create(nfeatures=max_features, fastThreshold=10)
+    if kind == "akaze":  # OpenCV 5 moved AKAZE to the contrib module
+        create = getattr(cv2, "AKAZE_create", None) or cv2.xfeatures2d.AKAZE_create
+        return create(threshold=5e-4)
+    raise AlignError(f"--features: unknown detector {kind!r} (choose from {', '.join(FEATURES)})")
+
+
+def detect(image: np.ndarray, *, kind: str = "sift", max_features: int = 2000, mask: np.ndarray | None = None,
+           scale: float = 1.0) -> Features:
+    """Keypoints and descriptors of an RGB ``(H, W, 3)`` or grey ``(H, W)`` uint8 image.
+
+    ``mask`` (``(H, W)`` bool) restricts detection, e.g. to pixels with depth. ``scale < 1``
+    detects on a resized image (area filter) and returns full-resolution coordinates: SIFT's
+    cost falls with the square of the scale (it doubles its input internally), its sub-pixel
+    localisation stays.
+    """
+    img = np.asarray(image)
+    if img.dtype != np.uint8 or img.ndim not in (2, 3):
+        raise AlignError(f"feature detection needs an 8-bit image, got {img.dtype} with shape {img.shape}")
+    grey = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) if img.ndim == 3 else img
+    m = None if mask is None else np.asarray(mask, bool).astype(np.uint8) * 255
+    if scale != 1.0:
+        size = (max(8, round(grey.shape[1] * scale)), max(8, round(grey.shape[0] * scale)))
+        sx, sy = grey.shape[1] / size[0], grey.shape[0] / size[1]
+        grey = cv2.resize(grey, size, interpolation=cv2.INTER_AREA)
+        m = None if m is None else cv2.resize(m, size, interpolation=cv2.INTER_NEAREST)
+        f = detect(grey, kind=kind, max_features=max_features, mask=None if m is None else m > 0)
+        xy = np.stack([(f.xy[:, 0] + 0.5) * sx - 0.5, (f.xy[:, 1] + 0.5) * sy - 0.5], axis=1).astype(np.float32)
+        return Features(xy, f.descriptors, f.kind)
+    det = _detector(kind, max_features)
+    kps, desc = det.detectAndCompute(grey, m)
+    if kind == "akaze" and len(kps) > max_features:  # AKAZE has no feature cap: keep the strongest
+        order = np.argsort([-k.response for k in kps])[:max_features]
+        kps = [kps[i] for i in order]
+        desc = desc[order]
+    xy = np.array([k.pt for k in kps], np.float32).reshape(-1, 2)
+    if desc is None:
+        desc = np.zeros((0, 32 if kind != "sift" else 128), np.uint8 if kind != "sift" else np.float32)
+    return Features(xy, desc, kind)
+
+
+def _knn(query: np.ndarray, train: np.ndarray, binary: bool, k: int):
+    """``k`` nearest train descriptors for each query: indices and distances ``(Nq, k)``."""
+    if binary:
+        matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
+    elif len(train) > 600:
+        matcher = cv2.FlannBasedMatcher({"algorithm": 1, "trees": 4}, {"checks": 64})
+    else:
+        matcher = cv2.BFMatcher(cv2.NORM_L2)
+    res = matcher.knnMatch(query, train, k=k)
+    idx = np.full((len(query), k), -1, np.int64)
+    dist = np.full((len(query), k), np.inf)
+    for qi, ms in enumerate(res):
+        for j, m in enumerate(ms[:k]):
+            idx[qi, j], dist[qi, j] = m.trainIdx, m.distance
+    return idx, dist
+
+
+def match(a: Features, b: Features, *, ratio: float = 0.8, cross_check: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Match keypoints of ``a`` to ``b``; returns index arrays ``(ia, ib)`` of the kept pairs.
+
+    Lowe's ratio test (nearest distance < ``ratio`` x second nearest) on ``a -> b``; with
+    ``cross_check`` the pair is kept only if ``a``'s keypoint is also ``b``'s nearest neighbour.
+    """
+    if a.kind != b.kind:
+        raise AlignError(f"cannot match {a.kind} features against {b.kind} features")
+    if len(a) < 2 or len(b) < 2:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    da, db = a.descriptors, b.descriptors
+    if not a.binary:
+        da, db = da.astype(np.float32, copy=False), db.astype(np.float32, copy=False)
+    idx, dist = _knn(da, db, a.binary, 2)
+    good = (idx[:, 0] >= 0) & (dist[:, 0] < ratio * dist[:, 1])
+    ia = np.flatnonzero(good)
+    ib = idx[ia, 0]
+    if cross_check and ia.size:
+        back, _ = _knn(db[ib], da, a.binary, 1)  # nearest a-descriptor of each matched b-keypoint
+        keep = back[:, 0] == ia
+        ia, ib = ia[keep], ib[keep]
+    # one a per b (ratio test alone allows several a on one b)
+    _, first = np.unique(ib, return_index=True)
+    first.sort()
+    return ia[first], ib[first]
+
+
+def sample_depth(depth: np.ndarray, xy: np.ndarray, *, edge_rel: float = 0.02) -> np.ndarray:
+    """Depth at sub-pixel positions ``(N, 2)``: bilinear where the 2x2 neighbours are one surface.
+
+    Returns ``(N,)`` float64 metres, NaN where a neighbour has no depth, the neighbours differ
+    by more than ``edge_rel`` (a depth edge: the keypoint may belong to either surface), or the
+    position is outside the image.
+    """
+    H, W = depth.shape
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    x0 = np.floor(xy[:, 0]).astype(np.int64)
+    y0 = np.floor(xy[:, 1]).astype(np.int64)
+    inside = (x0 >= 0) & (y0 >= 0) & (x0 + 1 < W) & (y0 + 1 < H)
+    out = np.full(xy.shape[0], np.nan)
+    if not inside.any():
+        return out
+    x0i, y0i = x0[inside], y0[inside]
+    fx, fy = xy[inside, 0] - x0i, xy[inside, 1] - y0i
+    q = np.stack([depth[y0i, x0i], depth[y0i, x0i + 1], depth[y0i + 1, x0i], depth[y0i + 1, x0i + 1]], 1).astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        lo, hi = q.min(axis=1), q.max(axis=1)
+        ok = np.isfinite(lo) & np.isfinite(hi) & (hi - lo <= edge_rel * lo)
+    z = (q[:, 0] * (1 - fx) * (1 - fy) + q[:, 1] * fx * (1 - fy) + q[:, 2] * (1 - fx) * fy + q[:, 3] * fx * fy)
+    out[np.flatnonzero(inside)[ok]] = z[ok]
+    return out
+
+
+def lift(xy: np.ndarray, depth_in_color: np.ndarray, K_color: Intrinsics, *, edge_rel: float = 0.02) -> np.ndarray:
+    """Colour keypoints ``(N, 2)`` to 3D points ``(N, 3)`` in the colour camera frame (NaN rows: no depth).
+
+    ``depth_in_color`` is the sensor's depth registered to its colour camera (``(H, W)`` float32 m).
+    """
+    z = sample_depth(depth_in_color, xy, edge_rel=edge_rel)
+    return K_color.unproject(np.asarray(xy, np.float64), z)
+
+
+def track(frames: list[np.ndarray], anchor: int, xy: np.ndarray, *, fb_px: float = 0.5, win: int = 21,
+          levels: int = 3) -> np.ndarray:
+    """Follow keypoints from ``frames[anchor]`` through the neighbouring frames (pyramidal KLT).
+
+    Tracking runs frame to frame outwards from the anchor in both directions; a point is kept in
+    a frame only if tracking it back lands within ``fb_px`` of where it came from
+    (forward-backward check), and is lost from then on.
+
+    Args:
+        frames: grey uint8 images ``(H, W)`` in time order. anchor: index of the frame of ``xy``.
+        xy: ``(N, 2)`` float positions in ``frames[anchor]``.
+    Returns:
+        ``(len(frames), N, 2)`` float64 positions, NaN where lost.
+    """
+    n = len(frames)
+    xy = np.asarray(xy, np.float32).reshape(-1, 2)
+    out = np.full((n, xy.shape[0], 2), np.nan)
+    out[anchor] = xy
+    if xy.shape[0] == 0:
+        return out
+    params = dict(winSize=(win, win), maxLevel=levels,
+                  criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+
+    def pyr(i):
+        return frames[i]
+
+    for step in (1, -1):
+        alive = np.arange(xy.shape[0])
+        pts = xy.copy()
+        i = anchor
+        while 0 <= i + step < n and alive.size:
+            j = i + step
+            p = pts.reshape(-1, 1, 2)
+            nxt, st, _ = cv2.calcOpticalFlowPyrLK(pyr(i), pyr(j), p, None, **params)
+            back, st2, _ = cv2.calcOpticalFlowPyrLK(pyr(j), pyr(i), nxt, None, **params)
+            good = (st.ravel() == 1) & (st2.ravel() == 1) & (np.linalg.norm((back - p).reshape(-1, 2), axis=1) < fb_px)
+            h, w = frames[j].shape[:2]
+            q = nxt.reshape(-1, 2)
+            good &= (q[:, 0] >= 0) & (q[:, 1] >= 0) & (q[:, 0] <= w - 1) & (q[:, 1] <= h - 1)
+            alive, pts = alive[good], q[good]
+            out[j, alive] = pts
+            i = j
+    return out

@@ -1,0 +1,643 @@
+"""``align_session``: a session folder in, an aligned dataset (plus its report) out.
+
+The I/O layer around the pure modules. Steps, in order:
+
+1. **Fit** (:func:`fit_pair`, never reads ``truth/``): pick probe HQ frames spread over the
+   session; per probe read the HQ colour and depth and the LQ colour frames around it, detect
+   features once, match, lift to 3D, track (``align.time_shift.Probe``); search the time shift
+   (``align.time_shift``); fit ``T_ex`` jointly over all probes (``align.extrinsics``).
+2. **Associate** every HQ depth frame with an LQ depth frame at the found shift (eq. 28 or TUM's
+   greedy matching), drop pairs whose time difference is too large or whose depth residual
+   stands out (``align.residuals``), each with its reason (``pairs.csv``).
+3. **Write** (:func:`write_pair_dataset`): warp the HQ depth onto the LQ depth image
+   (``align.warp``), compute the region of interest (``align.roi``), write the aligned dataset
+   (``align.dataset``) and the report (``align.report``).
+4. **Attach truth** (simulated sessions only, after fitting, clearly separate): the LQ sensor's
+   noise-free depth of each kept LQ frame becomes the ``truth_depth`` layer, so the benchmark
+   can score against truth. The fit has no access to it (:class:`TruthSource` is created only
+   after :func:`fit_pair` returned).
+
+Multi-view sessions (roles ``view``, optionally ``hq``): the reference sensor is ``hq`` if
+present, else the first view; every view is fitted against it (same machinery), the rig is
+expressed in the reference's depth frame (``rig.json``), and each view gets its own aligned
+dataset under ``OUT/<view>/``.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from align.association import associate, overlap_us
+from align.dataset import AlignedDatasetWriter
+from align.errors import AlignError, AssociationError, FeatureError, UnobservableError
+from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
+from align.features import FEATURES, detect, lift, match, track
+from align.residuals import depth_residual, outliers, robust_summary
+from align.roi import background_depth, foreground_mask
+from align.timestamps import regularize
+from align.time_shift import DEFAULT_RANGE_US, Probe, ShiftEstimate, ShiftLoss, estimate_time_shift, probe_window
+from align.warp import DepthWarper, register_color
+from capture.camera import Intrinsics, Transform
+from capture.session import Session, open_session
+from depthbench.fsutil import atomic_write_json, staged_directory
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class AlignOptions:
+    """Everything ``depthbench align`` can change; units in the names.
+
+    shift_range_ms: search Delta in [-r, +r] ms. shift_step_ms: coarse scan step.
+    features: sift | orb | akaze. max_features: per image. detect_scale: images are resized by
+    this factor for detection (coordinates stay full resolution). probes: HQ frames used for the fit.
+    association: nearest (eq. 28) | greedy (TUM). max_dt_ms: largest |t_LQ - (t_HQ + Delta)| of
+    a kept pair (default half the LQ frame period). residual_k: a pair whose depth residual lies
+    more than k MAD-sigmas above the median is dropped. time_model: constant | linear.
+    workers: threads for feature work. on_unobservable: error | flag (flag: Delta = declared or
+    0, marked unobservable in aligned.json and the report). attach_truth: simulated sessions.
+    """
+
+    shift_range_ms: float = DEFAULT_RANGE_US / 1000
+    shift_step_ms: float = 2.0
+    features: str = "sift"
+    max_features: int = 1500
+    detect_scale: float = 0.5
+    probes: int = 24
+    association: str = "nearest"
+    max_dt_ms: float | None = None
+    residual_k: float = 6.0
+    time_model: str = "constant"
+    workers: int = 2
+    on_unobservable: str = "error"
+    attach_truth: bool = True
+    report: bool = True
+    roi_frames: int = 40
+    edge_rel: float = 0.03
+    min_matches: int = 60
+    progress: bool = True
+
+    def check(self) -> None:
+        if not self.shift_range_ms > 0:
+            raise AlignError(f"--shift-range-ms must be positive, got {self.shift_range_ms:g}")
+        if not 0 < self.shift_step_ms <= self.shift_range_ms:
+            raise AlignError(f"--shift-step-ms must be in (0, {self.shift_range_ms:g}], got {self.shift_step_ms:g}")
+        if self.features not in FEATURES:
+            raise AlignError(f"--features must be one of {', '.join(FEATURES)}, got {self.features!r}")
+        if self.association not in ("nearest", "greedy"):
+            raise AlignError(f"--association must be nearest or greedy, got {self.association!r}")
+        if self.probes < 3:
+            raise AlignError(f"--probes must be at least 3, got {self.probes}")
+        if self.max_dt_ms is not None and not self.max_dt_ms > 0:
+            raise AlignError(f"--max-dt-ms must be positive, got {self.max_dt_ms:g}")
+        if self.time_model not in ("constant", "linear"):
+            raise AlignError(f"--time-model must be constant or linear, got {self.time_model!r}")
+        if self.on_unobservable not in ("error", "flag"):
+            raise AlignError(f"on_unobservable must be 'error' or 'flag', got {self.on_unobservable!r}")
+
+
+# --------------------------------------------------------------------------------------- geometry
+def _stream_of_type(session: Session, sensor: str, kind: str) -> str | None:
+    for name, s in session.sensors[sensor].streams.items():
+        if s.type == kind:
+            return name
+    return None
+
+
+@dataclass
+class PairSetup:
+    """Streams, cameras and timestamps of one (source = HQ, target = LQ) pair of a session."""
+
+    session: Session
+    lq: str
+    hq: str
+    lq_depth: str
+    lq_color: str
+    hq_depth: str
+    hq_color: str
+    K_lq: Intrinsics
+    K_lq_color: Intrinsics
+    K_hq: Intrinsics
+    K_hq_color: Intrinsics
+    T_lqdepth_lqcolor: Transform
+    T_hqdepth_hqcolor: Transform
+    t_lq: np.ndarray
+    f_lq: np.ndarray
+    t_lq_c: np.ndarray
+    f_lq_c: np.ndarray
+    t_hq: np.ndarray
+    f_hq: np.ndarray
+    t_hq_c: np.ndarray
+    f_hq_c: np.ndarray
+    hq_color_of_depth: np.ndarray  # per HQ depth frame: index of its colour frame, -1 if none
+    lq_period_us: float
+    clocks: dict = field(default_factory=dict)  # per stream: how its stamps were regularised
+
+    @property
+    def name(self) -> str:
+        return f"{self.hq}->{self.lq}"
+
+
+def pair_setup(session: Session, *, lq: str, hq: str, dejitter: bool = True) -> PairSetup:
+    """Resolve streams and calibration of the pair; one-line errors for what is missing.
+
+    With ``dejitter`` every stream's host stamps are regularised against its frame numbers
+    (``align.timestamps``); everything downstream uses those stamps.
+    """
+    where = session.manifest_path
+    for sid in (lq, hq):
+        if sid not in session.sensors:
+            raise AlignError(f"{where}: no sensor {sid!r} (sensors: {', '.join(session.sensors)})")
+    streams = {}
+    for sid in (lq, hq):
+        d = _stream_of_type(session, sid, "depth")
+        c = _stream_of_type(session, sid, "color")
+        if d is None:
+            raise AlignError(f"{where}: sensor {sid!r} has no depth stream")
+        if c is None:
+            raise FeatureError(f"{where}: sensor {sid!r} has no colour stream: colour features are impossible "
+                               "(record colour, or calibrate with a ChArUco board)")
+        streams[sid] = (d, c)
+    (lqd, lqc), (hqd, hqc) = streams[lq], streams[hq]
+    stamps, clocks = {}, {}
+    for sid, stream in ((lq, lqd), (hq, hqd), (lq, lqc), (hq, hqc)):
+        t = session.timestamps_us(sid, stream)
+        if t.size < 2:
+            raise AssociationError(f"{where}: stream {sid}/{stream} has {t.size} frame(s); alignment needs at least 2")
+        fn = session.frames(sid, stream)["frame_number"].to_numpy(np.int64)
+        reg = regularize(fn, t) if dejitter else None
+        stamps[(sid, stream)] = (fn, reg.stamps_us if reg is not None else t)
+        clocks[f"{sid}/{stream}"] = reg.to_dict() if reg is not None else {"method": "raw"}
+    f_lq, t_lq = stamps[(lq, lqd)]
+    f_hq, t_hq = stamps[(hq, hqd)]
+    f_lq_c, t_lq_c = stamps[(lq, lqc)]
+    f_hq_c, t_hq_c = stamps[(hq, hqc)]
+    # the HQ colour frame of each HQ depth frame: same frame number, else the nearest stamp within half a period
+    period_hq = float(np.median(np.diff(t_hq)))
+    pos = {int(f): i for i, f in enumerate(f_hq_c)}
+    col = np.array([pos.get(int(f), -1) for f in f_hq], np.int64)
+    missing = col < 0
+    if missing.any():
+        k = np.clip(np.searchsorted(t_hq_c, t_hq[missing]), 1, t_hq_c.size - 1)
+        k = np.where(np.abs(t_hq_c[k - 1] - t_hq[missing]) <= np.abs(t_hq_c[k] - t_hq[missing]), k - 1, k)
+        k = np.where(np.abs(t_hq_c[k] - t_hq[missing]) < period_hq / 2, k, -1)
+        col[missing] = k
+
+    def T_depth_color(sid: str) -> Transform:
+        T = session.sensors[sid].T_depth_color
+        if T is None:
+            raise AlignError(f"{where}: sensor {sid!r} has colour and depth but no T_depth_color (its own calibration)")
+        return T
+
+    return PairSetup(session, lq, hq, lqd, lqc, hqd, hqc, session.intrinsics(lq, lqd), session.intrinsics(lq, lqc),
+                     session.intrinsics(hq, hqd), session.intrinsics(hq, hqc), T_depth_color(lq), T_depth_color(hq),
+                     t_lq, f_lq, t_lq_c, f_lq_c, t_hq, f_hq, t_hq_c, f_hq_c, col, float(np.median(np.diff(t_lq))),
+                     clocks)
+
+
+# --------------------------------------------------------------------------------------- probes
+class ProbeBuilder:
+    """Reads the frames of a probe and computes its features (once per frame)."""
+
+    def __init__(self, setup: PairSetup, opts: AlignOptions) -> None:
+        self.s, self.o = setup, opts
+        self.range_us = (int(-opts.shift_range_ms * 1000), int(opts.shift_range_ms * 1000))
+        self.to_hq_color = DepthWarper(setup.K_hq, setup.K_hq_color, setup.T_hqdepth_hqcolor.inverse(),
+                                       edge_rel=opts.edge_rel)
+        self.n_matches = 0
+
+    def candidates(self) -> np.ndarray:
+        """HQ depth frames that have a colour frame and LQ colour frames around them for the whole range."""
+        s = self.s
+        ok = [i for i in range(s.t_hq.size)
+              if s.hq_color_of_depth[i] >= 0 and probe_window(int(s.t_hq[i]), s.t_lq_c, self.range_us).size >= 2]
+        return np.asarray(ok, np.int64)
+
+    def __call__(self, i: int) -> Probe | None:
+        s, o = self.s, self.o
+        t = int(s.t_hq[i])
+        win = probe_window(t, s.t_lq_c, self.range_us)
+        if win.size < 2:
+            return None
+        centre = t + (self.range_us[0] + self.range_us[1]) / 2
+        anchor = int(np.argmin(np.abs(s.t_lq_c[win] - centre)))
+        sess = s.session
+        rgb_hq = sess.read_color(s.hq, int(s.f_hq_c[s.hq_color_of_depth[i]]), stream=s.hq_color)
+        d_hq = sess.read_depth(s.hq, int(s.f_hq[i]), stream=s.hq_depth)
+        d_col = self.to_hq_color(d_hq)
+        fh = detect(rgb_hq, kind=o.features, max_features=o.max_features, mask=np.isfinite(d_col),
+                    scale=o.detect_scale)
+        X = s.T_hqdepth_hqcolor.apply(lift(fh.xy, d_col, s.K_hq_color))
+        ok = np.all(np.isfinite(X), axis=1)
+        if ok.sum() < 2:
+            return Probe(i, t, np.empty((0, 3)), s.f_lq_c[win], s.t_lq_c[win], np.empty((win.size, 0, 2)), anchor)
+        fh = type(fh)(fh.xy[ok], fh.descriptors[ok], fh.kind)
+        X = X[ok]
+        greys, rgb_anchor = [], None
+        for k, j in enumerate(win):
+            rgb = sess.read_color(s.lq, int(s.f_lq_c[j]), stream=s.lq_color)
+            if k == anchor:
+                rgb_anchor = rgb
+            greys.append(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY))
+        fl = detect(rgb_anchor, kind=o.features, max_features=o.max_features, scale=o.detect_scale)
+        ia, ib = match(fh, fl)
+        tracks = track(greys, anchor, fl.xy[ib])
+        return Probe(i, t, X[ia], win, s.t_lq_c[win], tracks, anchor)
+
+
+def build_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> tuple[list[Probe], int]:
+    """Probes spread evenly over the session (threads: OpenCV and numpy release the GIL)."""
+    builder = ProbeBuilder(setup, opts)
+    cand = builder.candidates()
+    if cand.size == 0:
+        lo, hi = builder.range_us
+        raise AssociationError(
+            f"{setup.session.root}: {setup.hq}/{setup.hq_depth} ({setup.t_hq[0]}..{setup.t_hq[-1]} us) and "
+            f"{setup.lq}/{setup.lq_color} ({setup.t_lq_c[0]}..{setup.t_lq_c[-1]} us) do not overlap for any shift "
+            f"in [{lo / 1000:g}, {hi / 1000:g}] ms")
+    pick = cand[np.unique(np.linspace(0, cand.size - 1, min(opts.probes, cand.size)).round().astype(int))]
+    threads = cv2.getNumThreads()
+    if opts.workers > 1:
+        cv2.setNumThreads(1)
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, opts.workers)) as pool:
+            it = pool.map(builder, pick.tolist())
+            probes = [p for p in tqdm(it, total=pick.size, desc=f"{desc} {setup.name}", unit="frame",
+                                      disable=not opts.progress, file=sys.stderr, leave=False) if p is not None]
+    finally:
+        cv2.setNumThreads(threads)
+    n_matches = sum(p.n_features for p in probes)
+    if n_matches < opts.min_matches:
+        raise FeatureError(f"{setup.session.root}: only {n_matches} colour feature matches between {setup.hq} and "
+                           f"{setup.lq} over {len(probes)} frames (need {opts.min_matches}): no common texture, "
+                           "no overlap of the views, or no depth under the HQ features")
+    return probes, int(cand.size)
+
+
+# --------------------------------------------------------------------------------------- the fit
+@dataclass
+class PairFit:
+    """What :func:`fit_pair` found (no truth involved)."""
+
+    setup: PairSetup
+    shift: ShiftEstimate
+    fit: ExtrinsicFit
+    T_lq_hq: Transform
+    probes: list[Probe]
+    feature_residuals_px: np.ndarray
+    candidates: int
+    seconds: float
+
+    def time_shift_at(self, t_hq_us) -> np.ndarray:
+        return self.shift.shift_at(t_hq_us)
+
+
+def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
+    """Time shift and extrinsics of one pair from colour features. Never reads ``truth/``."""
+    t_start = time.perf_counter()
+    facts = setup.session.clock_facts
+    declared = facts.get("time_shift_us")
+    drift = facts.get("drift_ppm")
+    rng = (int(-opts.shift_range_ms * 1000), int(opts.shift_range_ms * 1000))
+    if declared is None and overlap_us(setup.t_hq, setup.t_lq, rng[0]) == 0 and overlap_us(setup.t_hq, setup.t_lq, rng[1]) == 0 \
+            and overlap_us(setup.t_hq, setup.t_lq, 0) == 0:
+        raise AssociationError(f"{setup.session.root}: {setup.hq} ({setup.t_hq[0]}..{setup.t_hq[-1]} us) and {setup.lq} "
+                               f"({setup.t_lq[0]}..{setup.t_lq[-1]} us) do not overlap in time for any shift within "
+                               f"+-{opts.shift_range_ms:g} ms")
+    probes, n_cand = build_probes(setup, opts)
+    try:
+        shift = estimate_time_shift(probes, setup.K_lq_color, range_us=rng, step_us=int(opts.shift_step_ms * 1000),
+                                    model=opts.time_model, drift_ppm=drift, declared_shift_us=declared,
+                                    t0_us=int(setup.t_hq[0]))
+    except UnobservableError as exc:
+        if opts.on_unobservable == "error":
+            raise
+        shift = exc.estimate
+        shift.time_shift_us = float(declared or 0.0)
+        log.warning("%s", exc)
+    loss = ShiftLoss(probes, shift.T_init, setup.K_lq_color, t0_us=shift.t0_us)
+    pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
+    good = np.all(np.isfinite(pos), axis=1)
+    fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init)
+    T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
+    return PairFit(setup, shift, fit, T_lq_hq, probes, fit.residuals_px, n_cand, time.perf_counter() - t_start)
+
+
+# --------------------------------------------------------------------------------------- pairs
+@dataclass
+class PairTable:
+    """Every candidate pair, kept or not, and why (``pairs.csv``)."""
+
+    hq_index: np.ndarray
+    lq_index: np.ndarray
+    dt_us: np.ndarray
+    residual: np.ndarray
+    reason: list[str]
+
+    @property
+    def kept(self) -> np.ndarray:
+        return np.array([r == "" for r in self.reason], bool)
+
+    def counts(self) -> dict:
+        out: dict[str, int] = {}
+        for r in self.reason:
+            if r:
+                out[r] = out.get(r, 0) + 1
+        return out
+
+    def to_csv(self, setup: PairSetup, shift_us: np.ndarray) -> str:
+        lines = ["hq_frame,lq_frame,t_hq_us,t_lq_us,shift_us,dt_us,depth_residual_rel,kept,reason"]
+        for k in range(self.hq_index.size):
+            i, j = int(self.hq_index[k]), int(self.lq_index[k])
+            res = "" if not np.isfinite(self.residual[k]) else f"{self.residual[k]:.6f}"
+            lines.append(f"{setup.f_hq[i]},{setup.f_lq[j] if j >= 0 else ''},{setup.t_hq[i]},"
+                         f"{setup.t_lq[j] if j >= 0 else ''},{shift_us[k]:.1f},{self.dt_us[k] if j >= 0 else ''},{res},"
+                         f"{int(self.reason[k] == '')},{self.reason[k]}")
+        return "\n".join(lines) + "\n"
+
+
+def pair_frames(setup: PairSetup, pf: PairFit, opts: AlignOptions) -> PairTable:
+    """Eq. 28 (or greedy) at the fitted shift; reasons for the pairs dropped on time."""
+    shift = pf.time_shift_at(setup.t_hq)
+    max_dt = int((opts.max_dt_ms * 1000) if opts.max_dt_ms is not None else setup.lq_period_us / 2)
+    a = associate(setup.t_hq, setup.t_lq, time_shift_us=shift, method=opts.association, max_difference_us=max_dt + 1,
+                  hq_name=f"{setup.hq}/{setup.hq_depth}", lq_name=f"{setup.lq}/{setup.lq_depth}")
+    lq_of = np.full(setup.t_hq.size, -1, np.int64)
+    dt = np.zeros(setup.t_hq.size, np.int64)
+    lq_of[a.hq_index], dt[a.hq_index] = a.lq_index, a.dt_us
+    reason = ["" if lq_of[i] >= 0 else f"no LQ frame within {max_dt / 1000:g} ms" for i in range(setup.t_hq.size)]
+    # eq. 28 may give one LQ frame to two HQ frames: keep the nearer in time
+    best: dict[int, int] = {}
+    for i in np.flatnonzero(lq_of >= 0):
+        j = int(lq_of[i])
+        if j in best:
+            other = best[j]
+            loser = i if abs(dt[i]) >= abs(dt[other]) else other
+            reason[loser] = "LQ frame already paired with a nearer HQ frame"
+            best[j] = other if loser == i else i
+        else:
+            best[j] = int(i)
+    return PairTable(np.arange(setup.t_hq.size), lq_of, dt, np.full(setup.t_hq.size, np.nan), reason)
+
+
+# --------------------------------------------------------------------------------------- truth
+class TruthSource:
+    """The LQ sensor's noise-free depth of a simulated session (``truth/``), for the benchmark only.
+
+    Created by :func:`align_session` *after* the fit is complete; the fit never sees it.
+    """
+
+    def __init__(self, session_root: Path, sensor: str) -> None:
+        from capture.truth import read_truth
+
+        self.truth = read_truth(session_root)
+        self.sensor = sensor
+
+    @staticmethod
+    def available(session_root: Path) -> bool:
+        return (Path(session_root) / "truth" / "truth.json").is_file()
+
+    def depth(self, frame_number: int) -> np.ndarray:
+        return self.truth.depth(self.sensor, frame_number)
+
+
+# --------------------------------------------------------------------------------------- writing
+@dataclass
+class PairOutput:
+    """What was written for one pair."""
+
+    root: Path
+    table: PairTable
+    depth_residuals: dict
+    report: Path | None
+    kept: int
+    example: dict = field(default_factory=dict)
+
+
+def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOptions, *, force: bool,
+                       truth: TruthSource | None, meta_extra: dict | None = None) -> PairOutput:
+    """Warp, mask, filter and write one pair's aligned dataset (plus report) to ``root``."""
+    sess = setup.session
+    warper = DepthWarper(setup.K_hq, setup.K_lq, pf.T_lq_hq, edge_rel=opts.edge_rel)
+    table = pair_frames(setup, pf, opts)
+    lq_color_T = setup.T_lqdepth_lqcolor.inverse()
+    color_registered = setup.T_lqdepth_lqcolor.is_close(Transform.identity(), 1e-9) and setup.K_lq_color == setup.K_lq
+    timed = np.flatnonzero(np.array([r == "" for r in table.reason]))
+    # pass 1: depth residual of every pair, and a sample of references for the background model
+    sample = set(timed[np.unique(np.linspace(0, max(timed.size - 1, 0), min(opts.roi_frames, timed.size)).round()
+                               .astype(int))].tolist()) if timed.size else set()
+    refs = []
+    for k in tqdm(timed, desc=f"residuals {setup.name}", unit="pair", disable=not opts.progress, file=sys.stderr,
+                  leave=False):
+        i, j = int(table.hq_index[k]), int(table.lq_index[k])
+        ref = warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
+        lq = sess.read_depth(setup.lq, int(setup.f_lq[j]), stream=setup.lq_depth)
+        table.residual[k], n = depth_residual(lq, ref)
+        if n < 100:
+            table.reason[k] = "too few pixels with both depths"
+        if k in sample:
+            refs.append(np.where(np.isfinite(ref), ref, lq))
+    bad = outliers(table.residual[timed], k=opts.residual_k, floor=0.01) if timed.size else np.zeros(0, bool)
+    for k, b in zip(timed, bad):
+        if b and table.reason[k] == "":
+            table.reason[k] = f"depth residual above median + {opts.residual_k:g} sigma"
+    kept = np.flatnonzero(table.kept)
+    if kept.size == 0:
+        raise AlignError(f"{sess.root}: every frame pair was dropped ({table.counts()}); nothing to write")
+    background = background_depth(np.stack(refs)) if refs else None
+    shift_all = pf.time_shift_at(setup.t_hq)
+    meta = _metadata(setup, pf, table, opts, meta_extra)
+    writer = AlignedDatasetWriter(root, meta, force=force, depth_unit_m=1e-4)
+    example: dict = {}
+    try:
+        mid = kept[kept.size // 2]
+        for k in tqdm(kept, desc=f"write {setup.name}", unit="frame", disable=not opts.progress, file=sys.stderr,
+                      leave=False):
+            i, j = int(table.hq_index[k]), int(table.lq_index[k])
+            fl = int(setup.f_lq[j])
+            ref = warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
+            lq = sess.read_depth(setup.lq, fl, stream=setup.lq_depth)
+            color = _lq_color(sess, setup, fl, lq, color_registered, lq_color_T)
+            roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), background) if background is not None else None
+            tr = truth.depth(fl) if truth is not None else None
+            writer.add_frame(lq, ref, lq_color=color, roi=roi, truth=tr, lq_frame=fl, hq_frame=int(setup.f_hq[i]),
+                             lq_timestamp_us=int(setup.t_lq[j]))
+            if k == mid:
+                example = {"lq": lq, "ref": ref, "color": color, "roi": roi, "lq_frame": fl, "hq_frame": int(setup.f_hq[i])}
+        writer.write_table("pairs.csv", table.to_csv(setup, shift_all))
+        report = None
+        if opts.report:
+            from align.report import write_report
+
+            report = write_report(writer.root, setup, pf, table, example, meta)
+        writer.meta.update(meta)
+        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    if report is not None:
+        report = Path(root) / report.relative_to(writer.root) if report.is_absolute() and str(report).startswith(
+            str(writer.root)) else Path(root) / report.name
+    return PairOutput(Path(root), table, meta["residuals"]["depth"], report, int(kept.size), example)
+
+
+def _lq_color(sess, setup: PairSetup, frame: int, lq_depth, registered: bool, T_color_depth: Transform):
+    fn = setup.f_lq_c
+    if frame not in set(fn.tolist()):
+        return None
+    rgb = sess.read_color(setup.lq, frame, stream=setup.lq_color)
+    if registered:
+        return rgb
+    return register_color(rgb, lq_depth, setup.K_lq, setup.K_lq_color, T_color_depth)
+
+
+def _metadata(setup: PairSetup, pf: PairFit, table: PairTable, opts: AlignOptions, extra: dict | None) -> dict:
+    sess = setup.session
+    kept = table.kept
+    res = table.residual[kept]
+    fr = pf.fit.residuals_px
+    dt_kept = table.dt_us[kept]
+    meta = {
+        "name": f"{sess.name}.{setup.lq}" if extra and extra.get("multiview") else sess.name,
+        "sequence": sess.name,
+        "source_session": {"path": str(sess.root.resolve()), "name": sess.name,
+                           "frames_sha256": sess.manifest.get("checksums", {})},
+        "lq_sensor": setup.lq, "hq_sensor": setup.hq,
+        "lq_intrinsics": setup.K_lq.to_dict(), "hq_intrinsics": setup.K_hq.to_dict(),
+        "time_shift_us": int(round(pf.shift.time_shift_us)),
+        "time_model": pf.shift.to_dict(),
+        "T_lq_hq": pf.T_lq_hq.to_list(),
+        "T_lq_hq_std": {"rotation_deg": pf.fit.rotation_std_deg, "translation_mm": 1e3 * pf.fit.translation_std_m},
+        "residuals": {
+            "features": {**robust_summary(fr[np.isfinite(fr)]), "inliers": pf.fit.n_inliers, "pairs": pf.fit.n_pairs,
+                         "unit": "px", "rms_inliers_px": pf.fit.rms_px},
+            "depth": {**robust_summary(res), "unit": "relative |D_LQ - D_ref| / D_ref, per-pair median"},
+            "time": {**robust_summary(np.abs(dt_kept)), "unit": "us, |t_LQ - (t_HQ + Delta)| of kept pairs"},
+            "pairs": {"candidates": int(table.hq_index.size), "kept": int(kept.sum()), "dropped": table.counts()},
+        },
+        "effects": [],
+        "alignment": {"program": "depthbench align", "options": {k: v for k, v in opts.__dict__.items()},
+                      "probes": len(pf.probes), "probe_candidates": pf.candidates, "fit_seconds": pf.seconds},
+    }
+    if extra:
+        meta.update({k: v for k, v in extra.items() if k != "multiview"})
+    return json.loads(json.dumps(meta, default=_json_default))
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(type(o))
+
+
+# --------------------------------------------------------------------------------------- entry point
+@dataclass
+class AlignmentResult:
+    """What :func:`align_session` produced.
+
+    ``time_shift_us`` and ``T_lq_hq`` are those of the (first) LQ sensor; for multi-view rigs
+    ``views`` holds each view's fit and ``rig`` the calibrated rig.
+    """
+
+    out: Path
+    time_shift_us: int
+    T_lq_hq: Transform
+    shift: ShiftEstimate
+    fit: ExtrinsicFit
+    kept: int
+    dropped: dict
+    report: Path | None
+    views: dict[str, PairFit] = field(default_factory=dict)
+    rig: RigCalibration | None = None
+    seconds: float = 0.0
+
+    @property
+    def observable(self) -> bool:
+        return self.shift.observable
+
+
+def align_session(session, out, *, force: bool = False, lq: str | None = None, hq: str | None = None,
+                  **options) -> AlignmentResult:
+    """Align a session folder (or an open :class:`Session`) and write the aligned dataset to ``out``.
+
+    Keyword options are those of :class:`AlignOptions`. ``lq``/``hq`` pick sensors (default: the
+    roles ``lq`` and ``hq``; multi-view rigs are detected from the ``view`` role).
+    """
+    t0 = time.perf_counter()
+    opts = AlignOptions(**options)
+    opts.check()
+    sess = session if isinstance(session, Session) else open_session(session)
+    out = Path(out)
+    from depthbench.fsutil import check_output_free
+
+    check_output_free(out, force=force, what="aligned dataset")
+    views = sess.sensors_with_role("view")
+    if views and lq is None:
+        return _align_multiview(sess, out, views, opts, force=force, t0=t0)
+    lq = lq or _only(sess, "lq")
+    hq = hq or _only(sess, "hq")
+    setup = pair_setup(sess, lq=lq, hq=hq)
+    pf = fit_pair(setup, opts)
+    truth = TruthSource(sess.root, lq) if opts.attach_truth and TruthSource.available(sess.root) else None
+    po = write_pair_dataset(out, setup, pf, opts, force=force, truth=truth)
+    return AlignmentResult(out, int(round(pf.shift.time_shift_us)), pf.T_lq_hq, pf.shift, pf.fit, po.kept,
+                           po.table.counts(), po.report, {lq: pf}, None, time.perf_counter() - t0)
+
+
+def _only(sess: Session, role: str) -> str:
+    ids = sess.sensors_with_role(role)
+    if not ids:
+        raise AlignError(f"{sess.manifest_path}: no sensor with role {role!r} (sensors: "
+                         f"{', '.join(f'{k} ({v.role})' for k, v in sess.sensors.items())})")
+    return ids[0]
+
+
+def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOptions, *, force: bool,
+                     t0: float) -> AlignmentResult:
+    hqs = sess.sensors_with_role("hq")
+    reference = hqs[0] if hqs else views[0]
+    fits: dict[str, PairFit] = {}
+    outputs: dict[str, PairOutput] = {}
+    with staged_directory(out, force=force, what="aligned multi-view dataset") as stage:
+        for v in views:
+            src = reference if v != reference else views[1]
+            setup = pair_setup(sess, lq=v, hq=src)
+            fits[v] = fit_pair(setup, opts)
+        T_ref = {v: fits[v].T_lq_hq.inverse() for v in views if v != reference}
+        rig = compose_rig(reference, T_ref)
+        if reference in fits:  # reference view fitted against another view: a loop check
+            other = views[1]
+            rig.loop_errors.append((reference, other, *fits[reference].T_lq_hq.error_to(rig.T_dst_src(reference, other))))
+        atomic_write_json(stage / "rig.json", {"format": "depthbench.rig", "session": sess.name, **rig.to_dict(),
+                                              "time_shift_us": {v: int(round(f.shift.time_shift_us)) for v, f in fits.items()},
+                                              "time_source": {v: f.setup.hq for v, f in fits.items()}})
+        for v in views:
+            setup = fits[v].setup
+            truth = TruthSource(sess.root, v) if opts.attach_truth and TruthSource.available(sess.root) else None
+            outputs[v] = write_pair_dataset(stage / v, setup, fits[v], opts, force=False, truth=truth,
+                                            meta_extra={"multiview": True, "rig_reference": reference})
+        if opts.report:
+            from align.report import write_rig_report
+
+            write_rig_report(stage, sess, rig, fits, outputs)
+    first = views[0] if views[0] != reference else views[-1]
+    pf = fits[first]
+    dropped = {v: o.table.counts() for v, o in outputs.items()}
+    return AlignmentResult(out, int(round(pf.shift.time_shift_us)), pf.T_lq_hq, pf.shift, pf.fit,
+                           sum(o.kept for o in outputs.values()), dropped, out / "report.md" if opts.report else None,
+                           fits, rig, time.perf_counter() - t0)

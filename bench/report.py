@@ -175,7 +175,8 @@ def _fmt(x: float, digits: int = 2) -> str:
     return f"{x:.{digits}f}"
 
 
-def _cell(s: pd.DataFrame, metric: str, key: str, *, ci: bool = True) -> str:
+def _cell(s: pd.DataFrame, metric: str, key: str, *, n_total: int) -> str:
+    """``mean [lo, hi]``, with ``(n=k)`` when the value exists on fewer than all frames."""
     if (metric, key) not in s.index:
         return "–"
     r = s.loc[(metric, key)]
@@ -183,7 +184,8 @@ def _cell(s: pd.DataFrame, metric: str, key: str, *, ci: bool = True) -> str:
     m, lo, hi = r["mean"] * scale, r["lo"] * scale, r["hi"] * scale
     if not np.isfinite(m):
         return "–"
-    return f"{_fmt(m)} [{_fmt(lo)}, {_fmt(hi)}]" if ci else _fmt(m)
+    n = int(r["n_frames"])
+    return f"{_fmt(m)} [{_fmt(lo)}, {_fmt(hi)}]" + (f" (n={n})" if n < n_total else "")
 
 
 class _Doc:
@@ -258,7 +260,7 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
     n_frames = len(wide)
     doc.heading("Summary against the simulator's truth" if truth else "Summary against the HQ reference")
     header = ["metric"] + list(labels.values())
-    rows = [[name] + [_cell(s, metric, k) for k in labels] for metric, name in SUMMARY_METRICS.items()]
+    rows = [[name] + [_cell(s, metric, k, n_total=n_frames) for k in labels] for metric, name in SUMMARY_METRICS.items()]
     classes = [""] * len(rows)
     if not truth:
         slots = {table_i_slot(df.loc[df["method_key"] == k, "method"].iloc[0]): k for k in labels}
@@ -277,7 +279,9 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
     doc.para(f"Mean over {n_frames} frames of the per-frame value, with its 95 % bootstrap interval "
              f"({n_boot} resamples of the frames, seed {seed}, the same resamples for every column). "
              "Errors are over pixels valid in both the method's output and the reference, inside the ROI; "
-             "the fill rate is the share of reference pixels the method leaves valid.", cls="note")
+             "the fill rate is the share of reference pixels the method leaves valid. (n=k): the value exists on k "
+             "frames only (a method that needs colour on frames without it, or frames where nothing is scored).",
+             cls="note")
     if truth:
         doc.para("The **HQ sensor** column scores the warped HQ depth itself against the truth: the part of every "
                  "method's error against the HQ reference that is the reference's own error.", cls="note")

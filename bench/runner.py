@@ -154,6 +154,13 @@ def resolve_datasets(paths: Iterable[str | os.PathLike | AlignedDataset]) -> lis
     return list({ds.checksum: ds for ds in out}.values())
 
 
+def preview_frame(ds: AlignedDataset) -> int:
+    """The frame of the qualitative figure: the middle one, or the frame with colour nearest to it."""
+    mid = len(ds) // 2
+    coloured = [i for i, r in enumerate(ds.rows) if r["lq_color_file"]]
+    return min(coloured, key=lambda i: (abs(i - mid), i)) if coloured else mid
+
+
 def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
@@ -326,7 +333,7 @@ def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started
     needed: list[tuple[Denoiser, AlignedDataset, int]] = []
     reused = 0
     for ds in ds_list:
-        mid = len(ds) // 2
+        mid = preview_frame(ds)
         for i in range(len(ds)):
             todo = []
             for m in method_list:
@@ -347,7 +354,7 @@ def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started
     for ds in ds_list:   # the inputs of the qualitative figure
         p = R.preview_path(work, ds.checksum)
         if not p.exists():
-            R.save_npz(p, **preview_inputs(ds, len(ds) // 2))
+            R.save_npz(p, **preview_inputs(ds, preview_frame(ds)))
 
     bar = tqdm(total=n_todo, desc="bench", unit="result", disable=(None if progress is None else not progress),
                file=sys.stderr, dynamic_ncols=True)
@@ -431,7 +438,7 @@ def _write_manifest(work, prev_meta, table, ds_list, method_list, config, digest
     for ds in ds_list:
         datasets[ds.checksum] = {"name": ds.name, "sequence": ds.sequence, "checksum": ds.checksum,
                                  "path": str(ds.root.resolve()), "frames": len(ds), "simulated": bool(ds.simulated),
-                                 "preview_frame": len(ds) // 2}
+                                 "preview_frame": preview_frame(ds)}
     present = set(table["dataset_checksum"].unique())
     methods = {m["key"]: m for m in prev.get("methods", [])}
     for m in method_list:

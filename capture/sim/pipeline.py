@@ -1,17 +1,14 @@
 """Rendering frames in parallel: each worker process renders whole frames and encodes them.
 
 Open3D holds the GIL while it casts, so threads cannot overlap the casts with the numpy and
-encoding work; separate processes can. Every frame's randomness is seeded by
+encoding work; separate processes can (:mod:`capture.sim.worker`). Every frame's randomness is seeded by
 ``(seed, sensor, frame number)`` alone, so the bytes do not depend on the number of workers or
 on which worker rendered which frame. The main process only writes files and index rows, in
 scene-time order.
 """
 from __future__ import annotations
 
-import multiprocessing
-import signal
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -91,28 +88,17 @@ class FrameWorker:
         fn = int(plan.schedules[sid].frame_number[i])
         scale = plan.effects.get("depth_scale", 1.0) if sid == plan.rig.target else 1.0
         timings = _CpuTimings()
+        before = dict(self.renderer.cpu_s)
         rng = np.random.default_rng([plan.seed, 3, order, fn])
         frame = render_frame(spec, self.cams[sid], self.renderer, t_us * 1e-6, rng=rng, depth_scale=scale,
                              timings=timings)
+        for stage, s in self.renderer.cpu_s.items():
+            timings[stage] = s - before[stage]
         with timings("encode"):
             files = {"depth": (encode_png16(encode_depth(frame.depth, spec.depth_unit_m)), "png"),
                      "color": encode_color(frame.color, plan.color_encoding_of(sid)),
                      "truth": (encode_png16(encode_depth(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
         return EncodedFrame(sid, i, fn, files, dict(timings))
-
-
-_WORKER: FrameWorker | None = None
-
-
-def _init_worker(plan: Plan) -> None:
-    global _WORKER
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    _WORKER = FrameWorker(plan, nthreads=1)
-
-
-def _render_in_worker(event: Event) -> EncodedFrame:
-    assert _WORKER is not None
-    return _WORKER.render(event)
 
 
 def render_frames(plan: Plan, events: list[Event], *, workers: int) -> Iterator[EncodedFrame]:
@@ -123,14 +109,15 @@ def render_frames(plan: Plan, events: list[Event], *, workers: int) -> Iterator[
         for ev in events:
             yield worker.render(ev)
         return
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                             initargs=(plan,)) as pool:
-        try:
-            yield from pool.map(_render_in_worker, events, chunksize=2)
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
+    from capture.sim.worker import WorkerPool
+
+    pool = WorkerPool(plan, workers)
+    try:
+        yield from pool.map(events)
+    except BaseException:
+        pool.kill()
+        raise
+    pool.close()
 
 
 def frame_sha(data: bytes) -> str:

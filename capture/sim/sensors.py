@@ -49,11 +49,11 @@ class Timings(dict):
 
 def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s: float, *,
                  rng: np.random.Generator, depth_scale: float = 1.0, timings: Timings | None = None) -> SensorFrame:
-    """Render sensor ``spec`` at scene time ``t_s`` seconds (``depth_scale`` multiplies its depth)."""
+    """Render sensor ``spec`` at scene time ``t_s`` seconds (``depth_scale`` multiplies its depth).
+    ``timings`` gets the seconds spent on noise; the renderer counts its own (``Renderer.cpu_s``)."""
     timings = timings if timings is not None else Timings()
     seeds = rng.integers(0, 2**63, size=2)
-    with timings("raycast+texture"):
-        hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)
+    hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)
     with timings("noise"):
         if isinstance(spec.noise, StereoNoise):
             K = cams.depth.intrinsics
@@ -65,6 +65,5 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
         depth = noisy.depth if depth_scale == 1.0 else (noisy.depth * np.float32(depth_scale)).astype(np.float32)
     color = hits.rgb
     if cams.color is not None:
-        with timings("raycast+texture"):
-            color = renderer.cast(cams.color, t_s, noise_seed=int(seeds[1]), noise_dn=spec.color_noise_dn).rgb
+        color = renderer.cast(cams.color, t_s, noise_seed=int(seeds[1]), noise_dn=spec.color_noise_dn).rgb
     return SensorFrame(depth, color, hits.z, noisy.invalid)

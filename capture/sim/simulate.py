@@ -37,8 +37,9 @@ class SimulationResult:
 
     ``frames``/``dropped``: frames written / dropped per sensor; ``time_shift_us``: the true
     Delta between the target (LQ) and reference (HQ) host clocks; ``timings_s``: CPU seconds per
-    stage summed over the rendering processes (``raycast+texture``, ``noise``, ``encode``) and
-    seconds of the main process (``write``, ``truth``).
+    stage summed over the rendering processes (``raycast`` in Embree, ``shade`` texture and
+    colour kernels, ``noise`` depth noise models, ``encode`` PNG/JPEG) and seconds of the main
+    process (``write`` files and index rows, ``truth`` tables).
     """
 
     root: Path

@@ -1,0 +1,90 @@
+"""Simulator throughput: frames of scene time per second for each rig, and where the time goes.
+
+Run:  .venv/bin/python bench/perf/simulate_fps.py [--seconds 3] [--scene people] [--workers N]
+
+For each rig at the default resolutions (lq-hq: 640x480 stereo + 512x424 ToF + 960x540 colour),
+it simulates ``--seconds`` of scene time into a temporary folder and prints:
+
+* wall-clock frames of scene time per second (one frame = 1/30 s of every stream),
+* CPU seconds per frame per stage, summed over the rendering processes: ``raycast`` (Open3D /
+  Embree), ``shade`` (texture + shading + colour exposure kernels), ``noise`` (depth noise
+  models), ``encode`` (PNG/JPEG), and the main process's ``write`` (files + index rows),
+* the CPU-bound rate on this machine's cores (frames / (CPU seconds / cores)), which is what
+  the wall rate reaches when nothing else runs on the machine.
+
+The reference in the same run is the straightforward renderer on ``lq-hq``: one process,
+every pixel cast every frame (no still layer), printed first; the ratios compare against it.
+The machine is shared while the suite is developed, so the load average is printed too.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import capture.sim.pipeline as pipeline
+from capture.sim import RIGS, simulate
+from capture.sim.render import Renderer
+
+STAGES = ("raycast", "shade", "noise", "encode", "write")
+
+
+def _run(out: Path, rig: str, args, *, workers: int | None) -> dict:
+    cpu0 = time.process_time()
+    r = simulate(out, rig=rig, scene=args.scene, seconds=args.seconds, seed=1, force=True, progress=False,
+                 workers=workers)
+    frames = args.seconds * 30.0
+    cpu_worker = sum(r.timings_s.get(s, 0.0) for s in STAGES if s != "write")
+    cpu_main = time.process_time() - cpu0 if (workers or 2) > 1 else 0.0
+    total_cpu = cpu_worker + (cpu_main if (workers or 2) > 1 else r.timings_s.get("write", 0.0))
+    return {"fps": r.scene_frames_per_s, "wall": r.elapsed_s, "per_frame_ms": {s: 1e3 * r.timings_s.get(s, 0.0) / frames
+                                                                               for s in STAGES},
+            "cpu_per_frame_ms": 1e3 * total_cpu / frames, "frames": r.frames}
+
+
+def _print(label: str, m: dict, ref: dict | None, cores: int) -> None:
+    cpu_fps = 1e3 / m["cpu_per_frame_ms"] * cores
+    stages = "  ".join(f"{s} {m['per_frame_ms'][s]:5.1f}" for s in STAGES)
+    ratio = f"  x{m['fps'] / ref['fps']:.2f} wall, x{ref['cpu_per_frame_ms'] / m['cpu_per_frame_ms']:.2f} cpu vs reference" \
+        if ref else ""
+    print(f"{label:<34} {m['fps']:6.1f} frames/s wall ({m['wall']:5.1f} s)  cpu-bound on {cores} cores "
+          f"{cpu_fps:5.1f} frames/s  |  cpu ms/frame: {stages}  (total {m['cpu_per_frame_ms']:.0f}){ratio}")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--seconds", type=float, default=3.0, help="scene time per rig (default %(default)s)")
+    p.add_argument("--scene", default="people")
+    p.add_argument("--workers", type=int, default=None, help="rendering processes (default: one per core, max 4)")
+    p.add_argument("--rigs", nargs="*", default=list(RIGS))
+    p.add_argument("--no-reference", action="store_true", help="skip the slow reference run")
+    args = p.parse_args()
+    cores = os.cpu_count() or 1
+    print(f"cores: {cores}  load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}  "
+          f"scene: {args.scene}, {args.seconds:g} s = {args.seconds * 30:.0f} frames of scene time per rig")
+    tmp = Path(tempfile.mkdtemp(prefix="simulate-fps-"))
+    try:
+        ref = None
+        if not args.no_reference:
+            original = pipeline.Renderer
+            pipeline.Renderer = lambda scene, **kw: Renderer(scene, **kw, reuse_still=False)
+            try:
+                ref = _run(tmp / "ref", "lq-hq", args, workers=1)
+            finally:
+                pipeline.Renderer = original
+            _print("reference: lq-hq, 1 process, full", ref, None, cores)
+        for rig in args.rigs:
+            if rig == "lq-hq":
+                _print("lq-hq, 1 process", _run(tmp / "one", rig, args, workers=1), ref, cores)
+            m = _run(tmp / rig, rig, args, workers=args.workers)
+            _print(f"{rig}, {args.workers or min(cores, 4)} processes", m, ref, cores)
+        print(f"(after the runs: load average {' '.join(f'{x:.2f}' for x in os.getloadavg())})")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

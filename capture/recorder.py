@@ -16,7 +16,7 @@ Threads::
   intervals over 1.5 frame periods), removes and counts duplicates (a frame number seen again)
   and frames whose timestamps go backwards. When the queue is full the frame is dropped and
   counted as a writer drop (also part of ``dropped_frames``): the sensor is never blocked.
-* When the queue is over a quarter full the encoders write PNGs uncompressed (lossless, same
+* When the queue is over an eighth full the encoders write PNGs uncompressed (lossless, same
   pixels, larger) until it drains: CPU, not the disk, is the bottleneck on small machines.
 * A full disk (ENOSPC) stops recording: the reserve file made at the start is deleted so the
   manifest can still be written, the session is closed readable and :class:`RecordingError`
@@ -217,7 +217,12 @@ class _Recorder:
             for cfg in self.rig.sensors:
                 drv = classes[cfg.id](cfg)
                 self.drivers[cfg.id] = drv
-                desc = drv.open()
+                try:
+                    desc = drv.open()
+                except DepthbenchError:
+                    raise
+                except Exception as exc:  # an SDK error a driver did not translate: still one line
+                    raise DeviceError(f"sensor {cfg.label}: {type(exc).__name__}: {_one_line(exc)}") from None
                 if not desc.streams:
                     raise DeviceError(f"sensor {cfg.label}: the device delivers no streams")
                 self.descriptions[cfg.id] = desc
@@ -257,8 +262,8 @@ class _Recorder:
         _make_reserve(reserve)
         total_fps = sum(st.fps for d in self.descriptions.values() for st in d.streams.values())
         self.queue: queue.Queue[_Job | None] = queue.Queue(maxsize=max(8, int(total_fps * self.buffer_s)))
-        # Falling behind (queue over a quarter full): encode PNGs uncompressed until it drains.
-        self.fast_above = self.queue.maxsize // 4 if self.adaptive else self.queue.maxsize + 1
+        # Falling behind (queue over an eighth full, ~0.1 s): encode PNGs uncompressed until it drains.
+        self.fast_above = max(2, self.queue.maxsize // 8) if self.adaptive else self.queue.maxsize + 1
         self.sequencer = _Sequencer(self.writer)
         encoders = [threading.Thread(target=self._encode_loop, name=f"encoder-{i}", daemon=True)
                     for i in range(self.n_writers)]
@@ -473,7 +478,7 @@ def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, fo
             frames are dropped and counted as writer drops.
         fsync: fsync every frame and row (survives power loss, slower).
         progress: stream for the live status line (per-stream frame rate and drops), or None.
-        adaptive: while the queue is over a quarter full, write PNGs uncompressed (same pixels,
+        adaptive: while the queue is over an eighth full, write PNGs uncompressed (same pixels,
             larger files, ~8x less CPU) so a slow machine keeps up instead of dropping frames.
 
     Returns a :class:`RecordResult`. Raises :class:`RigError`/:class:`DeviceError` before

@@ -90,7 +90,8 @@ def run_rig(rig: Rig, seconds: float, writers: int, adaptive: bool = True) -> di
     return {"frames_per_s": r.frames_per_s, "mb_per_s": r.mb_per_s, "writer_drops": r.writer_dropped,
             "drops": sum(s.dropped for s in r.streams.values()), "wall_s": r.wall_s, "cpu_cores": cpu / r.wall_s,
             "min_stream_ratio": min(s.frames / due for s in r.streams.values()), "streams": len(r.streams),
-            "expected": expected, "fast_share": r.fast_encoded / max(r.frames, 1)}
+            "expected": expected, "fast_share": r.fast_encoded / max(r.frames, 1),
+            "cpu_ms_per_frame": cpu / max(r.frames, 1) * 1e3}
 
 
 def main(argv=None) -> int:
@@ -103,7 +104,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     writers = args.writers or default_writers()
     source = ensure_source(args.source, args.source_seconds)
-    print(f"cores: {os.cpu_count()}  encoder threads: {writers}  source: {source}")
+    print(f"cores: {os.cpu_count()}  load average before: {os.getloadavg()[0]:.2f}  encoder threads: {writers}  "
+          f"source: {source}")
     warm_cache(source)
 
     print("\n1. reference: single-thread encode of one frame set (compressed PNG | uncompressed 'fast' PNG)")
@@ -122,7 +124,8 @@ def main(argv=None) -> int:
         m = run_rig(lq_hq, args.seconds, writers, adaptive)
         print(f"   written {m['frames_per_s']:.1f} frames/s (real time: 120), {m['mb_per_s']:.1f} MB/s, writer drops "
               f"{m['writer_drops']}, all drops {m['drops']}, slowest stream at {m['min_stream_ratio'] * 100:.1f} % of "
-              f"real time, CPU {m['cpu_cores']:.2f} cores, {m['fast_share'] * 100:.0f} % of frames uncompressed")
+              f"real time, CPU {m['cpu_cores']:.2f} cores ({m['cpu_ms_per_frame']:.1f} ms/frame: real time needs "
+              f"{m['cpu_ms_per_frame'] * 120e-3:.2f} cores), {m['fast_share'] * 100:.0f} % of frames uncompressed")
         print(f"   -> {'keeps up' if m['writer_drops'] == 0 else 'DOES NOT keep up'} with real time")
 
     print("\n3. N simulated LQ sensors (640x480 depth + colour, 30 fps each)")
@@ -139,6 +142,8 @@ def main(argv=None) -> int:
         else:
             break
     print(f"   -> highest number of LQ sensors at 30 fps without writer drops: {best}")
+    print(f"load average after: {os.getloadavg()[0]:.2f} (other processes take CPU from the recorder; numbers "
+          f"are for this machine as loaded)")
     return 0
 
 

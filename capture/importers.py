@@ -102,6 +102,7 @@ class _Builder:
         self.manifest = manifest
         self.writer = SessionWriter(out, manifest, force=force, staged=True)
         self.reports = {s.sensor_id: {n: StreamReport() for n in s.description.streams} for s in sources}
+        self._labels = {s.sensor_id: str(s.info.get("path", importer)) for s in sources}
         self._last: dict[tuple[str, str], tuple[int, int, int]] = {}
         self._metadata: dict[str, list[dict]] = {s.sensor_id: [] for s in sources}
         self._domains: dict[str, set[str]] = {s.sensor_id: set() for s in sources}
@@ -151,7 +152,8 @@ class _Builder:
                 if rep.out_of_order:
                     skipped[f"{sid}/{name}"] = rep.out_of_order
                 if rep.frames == 0:
-                    raise SessionFormatError(f"{self.importer}: stream {sid}/{name} has no frames")
+                    raise SessionFormatError(f"{self._labels.get(sid, self.importer)}: stream {name} has no frames "
+                                             f"(sensor {sid})")
             clock = dict(sensors[sid].get("clock", {}))
             if self._domains[sid]:
                 clock["domains"] = sorted(self._domains[sid])
@@ -255,7 +257,8 @@ def import_realsense(files: Sequence[str | os.PathLike], out: str | os.PathLike,
     try:
         for f in files:
             recordings.append(open_recording(f, streams=tuple(streams) if streams else None))
-        sources = [_Source(sid, role, rec.description, {}) for sid, role, rec in zip(sensor_ids, roles, recordings)]
+        sources = [_Source(sid, role, rec.description, {"path": rec.path})
+                   for sid, role, rec in zip(sensor_ids, roles, recordings)]
         total = sum(rec.expected_count(n) for rec in recordings for n in rec.source.selected)
         info = {"files": [{**_file_info(rec.path), "sensor": sid} for sid, rec in zip(sensor_ids, recordings)],
                 "sdk": "pyrealsense2 playback (not real time)"}
@@ -285,7 +288,8 @@ def import_azure_kinect(file: str | os.PathLike, out: str | os.PathLike, *, sens
     rec = open_mkv(file, streams=tuple(streams))
     info = {"files": [{**_file_info(file), "sensor": sensor_id}], "reader": "PyAV (FFmpeg Matroska demuxer)",
             "host_timestamps": "copy of the device timestamps (the recording has no host times)"}
-    builder = _Builder(out, name=name, sources=[_Source(sensor_id, role, rec.description, {})], importer="azure-kinect",
+    builder = _Builder(out, name=name, sources=[_Source(sensor_id, role, rec.description, {"path": file})],
+                       importer="azure-kinect",
                        time_base="device", source_info=info, force=force, total=None, progress=progress,
                        desc="import azure-kinect")
     return _run(builder, [(sensor_id, rec.frames())], {sensor_id: rec.notes})
@@ -305,7 +309,8 @@ def import_tum(folder: str | os.PathLike, out: str | os.PathLike, *, sensor_id: 
     tum = open_tum(folder, intrinsics=intrinsics, depth_scale=depth_scale, fps=fps, with_color=with_color)
     info = {"files": [{"path": str(folder.resolve()), "sensor": sensor_id}],
             "host_timestamps": "TUM timestamps (both columns)", "depth_scale_counts_per_m": depth_scale}
-    builder = _Builder(out, name=name, sources=[_Source(sensor_id, role, tum.description, {})], importer="tum",
+    builder = _Builder(out, name=name, sources=[_Source(sensor_id, role, tum.description, {"path": folder})],
+                       importer="tum",
                        time_base="host", source_info=info, force=force,
                        total=sum(tum.count(s) for s in tum.lists), progress=progress, desc="import tum")
     return _run(builder, [(sensor_id, tum.frames())])

@@ -230,8 +230,9 @@ class AzureKinectRecording:
         by_index = {t.index: t for t in self.tracks.values()}
         first_pts: int | None = None
         counts = {name: 0 for name in self.tracks}
-        previous = av.logging.get_level()
+        previous, previous_skip = av.logging.get_level(), av.logging.get_skip_repeated()
         av.logging.set_level(av.logging.ERROR)
+        av.logging.set_skip_repeated(False)  # PyAV swallows a message identical to the last one logged
         try:
             with av.logging.Capture(True) as logs:
                 try:
@@ -261,6 +262,7 @@ class AzureKinectRecording:
                                          f"(FFmpeg: {' '.join(errors[0].split())})")
         finally:
             av.logging.set_level(previous)
+            av.logging.set_skip_repeated(previous_skip)
         if counts.get("depth", 0) == 0:
             raise SessionFormatError(f"{self.path}: the recording has no depth frames")
 

@@ -26,6 +26,7 @@ from capture.drivers.realsense import (RealSenseDriver, f32, intrinsics_from_rs,
 from capture.errors import CalibrationError, DeviceError, RigError, SessionFormatError
 from capture.session import decode_depth, open_session
 from tests.capture.realsense_synth import SynthSpec, record_synthetic
+from tests.capture.inproc_cli import run_inproc
 from tests.conftest import assert_one_line_error
 
 LQ = SynthSpec()
@@ -216,7 +217,7 @@ def test_truncated_recording_is_one_line_error(recordings, tmp_path, cli):
     assert not (tmp_path / "s").exists() and not list(tmp_path.glob(".s.*"))
 
 
-def test_corrupt_frame_data_is_detected(recordings, tmp_path, cli):
+def test_corrupt_frame_data_is_detected(recordings, tmp_path, capfd):
     """A damaged image message inside an intact database: the SDK delivers fewer frames than recorded."""
     bad = tmp_path / "blob.db3"
     bad.write_bytes(recordings[0].read_bytes())
@@ -228,42 +229,42 @@ def test_corrupt_frame_data_is_detected(recordings, tmp_path, cli):
     con.execute("UPDATE messages SET data = ? WHERE id = ?", (bytes(data), mid))
     con.commit()
     con.close()
-    r = cli("capture", "import", "realsense", bad, "--out", tmp_path / "s")
+    r = run_inproc(capfd, "capture", "import", "realsense", bad, "--out", tmp_path / "s")
     assert_one_line_error(r, str(bad), "recorded depth frames")
     assert not (tmp_path / "s").exists()
 
 
 @pytest.mark.parametrize("content,message", [(b"", "empty file"), (b"#ROSBAG V2.0\n" + b"\0" * 100, "not an SQLite"),
                                              (b"hello", "not an SQLite")])
-def test_not_a_recording_is_one_line_error(tmp_path, cli, content, message):
+def test_not_a_recording_is_one_line_error(tmp_path, capfd, content, message):
     bad = tmp_path / "x.db3"
     bad.write_bytes(content)
-    r = cli("capture", "import", "realsense", bad, "--out", tmp_path / "s")
+    r = run_inproc(capfd, "capture", "import", "realsense", bad, "--out", tmp_path / "s")
     assert_one_line_error(r, str(bad), message)
 
 
-def test_recording_without_depth_is_one_line_error(tmp_path, cli):
+def test_recording_without_depth_is_one_line_error(tmp_path, capfd):
     f = record_synthetic(tmp_path / "color_only.db3", SynthSpec(with_depth=False))
-    r = cli("capture", "import", "realsense", f, "--out", tmp_path / "s")
+    r = run_inproc(capfd, "capture", "import", "realsense", f, "--out", tmp_path / "s")
     assert_one_line_error(r, str(f), "no depth stream")
     assert not (tmp_path / "s").exists()
 
 
-def test_existing_output_is_not_overwritten(recordings, imported, tmp_path, cli):
+def test_existing_output_is_not_overwritten(recordings, imported, tmp_path, capfd):
     out = tmp_path / "existing"
     out.mkdir()
     (out / "keep.txt").write_text("mine")
     before = _snapshot(out)
-    r = cli("capture", "import", "realsense", recordings[0], "--out", out)
+    r = run_inproc(capfd, "capture", "import", "realsense", recordings[0], "--out", out)
     assert_one_line_error(r, str(out), "--force")
     assert _snapshot(out) == before
-    r = cli("capture", "import", "realsense", recordings[0], "--out", out, "--force", "--quiet")
+    r = run_inproc(capfd, "capture", "import", "realsense", recordings[0], "--out", out, "--force", "--quiet")
     assert r.returncode == 0, r.stderr
     assert not (out / "keep.txt").exists() and open_session(out).sensors["lq"].serial == LQ.serial
 
 
-def test_mismatched_roles_are_one_line_error(recordings, tmp_path, cli):
-    r = cli("capture", "import", "realsense", *recordings, "--role", "lq", "--role", "hq", "--role", "view",
+def test_mismatched_roles_are_one_line_error(recordings, tmp_path, capfd):
+    r = run_inproc(capfd, "capture", "import", "realsense", *recordings, "--role", "lq", "--role", "hq", "--role", "view",
             "--out", tmp_path / "s")
     assert_one_line_error(r, "3 roles for 2 recordings")
 

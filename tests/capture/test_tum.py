@@ -11,6 +11,7 @@ import pytest
 from capture.drivers.tum import parse_timestamp_us
 from capture.errors import SessionFormatError
 from capture.session import open_session
+from tests.capture.inproc_cli import run_inproc
 from tests.conftest import assert_one_line_error
 
 DEPTH_TS = ["1305031102.160407", "1305031102.194330", "1305031102.226738"]
@@ -79,9 +80,9 @@ def test_import_tum_folder(tum_folder, real_data, tmp_path, cli):
     assert cli("capture", "validate", out).returncode == 0
 
 
-def test_intrinsics_role_and_id_can_be_given(tum_folder, tmp_path, cli):
+def test_intrinsics_role_and_id_can_be_given(tum_folder, tmp_path, capfd):
     out = tmp_path / "fr1"
-    r = cli("capture", "import", "tum", tum_folder, "--out", out, "--role", "hq", "--sensor-id", "kinect",
+    r = run_inproc(capfd, "capture", "import", "tum", tum_folder, "--out", out, "--role", "hq", "--sensor-id", "kinect",
             "--intrinsics", "517.3,516.5,318.6,255.3,0.2624,-0.9531,-0.0054,0.0026,1.1633", "--no-color", "--quiet")
     assert r.returncode == 0, r.stderr
     s = open_session(out)
@@ -91,15 +92,15 @@ def test_intrinsics_role_and_id_can_be_given(tum_folder, tmp_path, cli):
     assert set(s.sensors["kinect"].streams) == {"depth"} and s.sensors["kinect"].role == "hq"
 
 
-def test_missing_depth_list_is_one_line_error(tum_folder, tmp_path, cli):
+def test_missing_depth_list_is_one_line_error(tum_folder, tmp_path, capfd):
     (tum_folder / "depth.txt").unlink()
-    r = cli("capture", "import", "tum", tum_folder, "--out", tmp_path / "s")
+    r = run_inproc(capfd, "capture", "import", "tum", tum_folder, "--out", tmp_path / "s")
     assert_one_line_error(r, "depth.txt", "missing")
 
 
-def test_empty_depth_list_means_no_depth_stream(tum_folder, tmp_path, cli):
+def test_empty_depth_list_means_no_depth_stream(tum_folder, tmp_path, capfd):
     (tum_folder / "depth.txt").write_text("# depth maps\n")
-    r = cli("capture", "import", "tum", tum_folder, "--out", tmp_path / "s")
+    r = run_inproc(capfd, "capture", "import", "tum", tum_folder, "--out", tmp_path / "s")
     assert_one_line_error(r, "depth.txt", "no depth")
 
 
@@ -113,18 +114,18 @@ def test_broken_png_is_one_line_error_and_nothing_is_written(tum_folder, tmp_pat
     assert not (tmp_path / "s").exists() and not list(tmp_path.glob(".s.*"))
 
 
-def test_listed_path_outside_the_folder_is_refused(tum_folder, tmp_path, cli):
+def test_listed_path_outside_the_folder_is_refused(tum_folder, tmp_path, capfd):
     (tum_folder / "rgb.txt").write_text(f"{RGB_TS[0]} ../../etc/passwd\n")
-    r = cli("capture", "import", "tum", tum_folder, "--out", tmp_path / "s")
+    r = run_inproc(capfd, "capture", "import", "tum", tum_folder, "--out", tmp_path / "s")
     assert_one_line_error(r, "rgb.txt", "escapes")
 
 
-def test_existing_output_is_not_overwritten(tum_folder, tmp_path, cli):
+def test_existing_output_is_not_overwritten(tum_folder, tmp_path, capfd):
     out = tmp_path / "s"
     out.mkdir()
     (out / "notes.txt").write_text("keep")
-    r = cli("capture", "import", "tum", tum_folder, "--out", out)
+    r = run_inproc(capfd, "capture", "import", "tum", tum_folder, "--out", out)
     assert_one_line_error(r, str(out), "--force")
     assert (out / "notes.txt").read_text() == "keep"
-    assert cli("capture", "import", "tum", tum_folder, "--out", out, "--force", "--quiet").returncode == 0
+    assert run_inproc(capfd, "capture", "import", "tum", tum_folder, "--out", out, "--force", "--quiet").returncode == 0
     assert json.loads((out / "session.json").read_text())["source"]["importer"] == "tum"

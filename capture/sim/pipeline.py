@@ -28,17 +28,18 @@ Event = tuple[int, int, str, int]
 
 @dataclass
 class EncodedFrame:
-    """A rendered frame, encoded: ``files`` maps ``depth``/``color``/``truth`` to ``(bytes, ext)``."""
+    """A rendered frame, encoded: ``files`` maps ``depth``/``color``/``truth`` to ``(bytes, ext)``;
+    ``stage_s``: seconds spent per stage on it."""
 
     sensor: str
     index: int
     frame_number: int
     files: dict[str, tuple[bytes, str]]
-    cpu_s: dict[str, float]
+    stage_s: dict[str, float]
 
 
-class _CpuTimings(dict):
-    """Per-stage CPU seconds of this process (``time.process_time``), accumulated."""
+class _StageTimings(dict):
+    """Per-stage seconds (``time.perf_counter``), accumulated."""
 
     def __call__(self, stage: str):
         return _Stage(self, stage)
@@ -49,10 +50,10 @@ class _Stage:
         self.owner, self.stage = owner, stage
 
     def __enter__(self) -> None:
-        self.t = time.process_time()
+        self.t = time.perf_counter()
 
     def __exit__(self, *exc) -> None:
-        self.owner[self.stage] = self.owner.get(self.stage, 0.0) + time.process_time() - self.t
+        self.owner[self.stage] = self.owner.get(self.stage, 0.0) + time.perf_counter() - self.t
 
 
 def encode_png16(counts: np.ndarray) -> bytes:
@@ -87,12 +88,12 @@ class FrameWorker:
         spec = plan.rig.sensor(sid)
         fn = int(plan.schedules[sid].frame_number[i])
         scale = plan.effects.get("depth_scale", 1.0) if sid == plan.rig.target else 1.0
-        timings = _CpuTimings()
-        before = dict(self.renderer.cpu_s)
+        timings = _StageTimings()
+        before = dict(self.renderer.stage_s)
         rng = np.random.default_rng([plan.seed, 3, order, fn])
         frame = render_frame(spec, self.cams[sid], self.renderer, t_us * 1e-6, rng=rng, depth_scale=scale,
                              timings=timings)
-        for stage, s in self.renderer.cpu_s.items():
+        for stage, s in self.renderer.stage_s.items():
             timings[stage] = s - before[stage]
         with timings("encode"):
             files = {"depth": (encode_png16(encode_depth(frame.depth, spec.depth_unit_m)), "png"),

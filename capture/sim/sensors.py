@@ -50,7 +50,7 @@ class Timings(dict):
 def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s: float, *,
                  rng: np.random.Generator, depth_scale: float = 1.0, timings: Timings | None = None) -> SensorFrame:
     """Render sensor ``spec`` at scene time ``t_s`` seconds (``depth_scale`` multiplies its depth).
-    ``timings`` gets the seconds spent on noise; the renderer counts its own (``Renderer.cpu_s``)."""
+    ``timings`` gets the seconds spent on noise; the renderer counts its own (``Renderer.stage_s``)."""
     timings = timings if timings is not None else Timings()
     seeds = rng.integers(0, 2**63, size=2)
     hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)

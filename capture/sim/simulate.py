@@ -36,7 +36,7 @@ class SimulationResult:
     """What :func:`simulate` wrote.
 
     ``frames``/``dropped``: frames written / dropped per sensor; ``time_shift_us``: the true
-    Delta between the target (LQ) and reference (HQ) host clocks; ``timings_s``: CPU seconds per
+    Delta between the target (LQ) and reference (HQ) host clocks; ``timings_s``: seconds per
     stage summed over the rendering processes (``raycast`` in Embree, ``shade`` texture and
     colour kernels, ``noise`` depth noise models, ``encode`` PNG/JPEG) and seconds of the main
     process (``write`` files and index rows, ``truth`` tables).
@@ -169,7 +169,7 @@ def _render_all(plan: Plan, writer: SessionWriter, truth: TruthWriter, timings: 
                disable=not progress, leave=False)
     with bar:
         for enc in render_frames(plan, events, workers=workers):
-            for stage, s in enc.cpu_s.items():
+            for stage, s in enc.stage_s.items():
                 timings[stage] = timings.get(stage, 0.0) + s
             with timings("write"):
                 _write_frame(plan, writer, truth, enc)

@@ -235,16 +235,17 @@ def smallest_eigh3(c00, c01, c02, c11, c12, c22):
     lam_mid = 3.0 * q - lam_max - lam_min
     # rows of C - lam_min I: r0 = (x0, c01, c02), r1 = (c01, y1, c12), r2 = (c02, c12, z2)
     x0, y1, z2 = c00 - lam_min, c11 - lam_min, c22 - lam_min
-    best = np.stack([c01 * c12 - c02 * y1, c02 * c01 - x0 * c12, x0 * y1 - c01 * c01])          # r0 x r1
-    nb = np.einsum("kn,kn->n", best, best)
-    for cand in (np.stack([c01 * z2 - c02 * c12, c02 * c02 - x0 * z2, x0 * c12 - c01 * c02]),   # r0 x r2
-                 np.stack([y1 * z2 - c12 * c12, c12 * c02 - c01 * z2, c01 * c12 - y1 * c02])):  # r1 x r2
-        nc = np.einsum("kn,kn->n", cand, cand)
+    vx, vy, vz = c01 * c12 - c02 * y1, c02 * c01 - x0 * c12, x0 * y1 - c01 * c01          # r0 x r1
+    nb = vx * vx + vy * vy + vz * vz
+    for cx, cy, cz in ((c01 * z2 - c02 * c12, c02 * c02 - x0 * z2, x0 * c12 - c01 * c02),   # r0 x r2
+                       (y1 * z2 - c12 * c12, c12 * c02 - c01 * z2, c01 * c12 - y1 * c02)):  # r1 x r2
+        nc = cx * cx + cy * cy + cz * cz
         take = nc > nb
-        best = np.where(take, cand, best)
-        nb = np.where(take, nc, nb)
+        vx, vy, vz, nb = np.where(take, cx, vx), np.where(take, cy, vy), np.where(take, cz, vz), np.where(take, nc, nb)
     with np.errstate(invalid="ignore", divide="ignore"):
-        v = (best / np.sqrt(nb)).T
+        inv = 1.0 / np.sqrt(nb)
+    v = np.empty((nb.size, 3))
+    v[:, 0], v[:, 1], v[:, 2] = vx * inv, vy * inv, vz * inv
     return lam_min, lam_mid, lam_max, v
 
 
@@ -283,13 +284,13 @@ class PlaneFitResult:
 
 @lru_cache(maxsize=8)
 def _rays(intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Normalised ray coordinates ``xn, yn`` ``(H, W)`` and the grid bound factor ``B`` (pixels per metre at 1 m)."""
+    """Normalised ray coordinates ``xn, yn`` ``(H, W)`` and ``s = sqrt(1 + xn^2 + yn^2)`` (read-only)."""
     rays = intrinsics.ray_grid()
     xn, yn = np.ascontiguousarray(rays[..., 0]), np.ascontiguousarray(rays[..., 1])
-    b = np.maximum(intrinsics.fx * np.sqrt(1.0 + xn * xn), intrinsics.fy * np.sqrt(1.0 + yn * yn))
-    for a in (xn, yn, b):
+    s = np.sqrt(1.0 + xn * xn + yn * yn)
+    for a in (xn, yn, s):
         a.setflags(write=False)
-    return xn, yn, b
+    return xn, yn, s
 
 
 def _ring(k: int) -> list[tuple[int, int]]:
@@ -306,13 +307,30 @@ def _half_ring(k: int) -> list[tuple[int, int]]:
     return [(dv, du) for dv, du in _ring(k) if dv > 0 or (dv == 0 and du > 0)]
 
 
+@lru_cache(maxsize=8)
+def _deep_groups(fx: float, fy: float) -> tuple[tuple[float, tuple[tuple[int, int], ...]], ...]:
+    """Offsets of Chebyshev distance 2.._GRID_CAP grouped by their normalised length
+    ``e = sqrt((du / fx)^2 + (dv / fy)^2)``, in increasing ``e``."""
+    groups: dict[tuple[int, int], list[tuple[int, int]]] = {}
+    for k in range(2, _GRID_CAP + 1):
+        for dv, du in _ring(k):
+            groups.setdefault((abs(dv), abs(du)), []).append((dv, du))
+    out = [(float(np.hypot(a[1] / fx, a[0] / fy)), tuple(v)) for a, v in groups.items()]
+    return tuple(sorted(out))
+
+
+def _beyond_cap(K: Intrinsics) -> float:
+    """Smallest normalised length of an offset outside the grid's window cap."""
+    return (_GRID_CAP + 1) / max(K.fx, K.fy)
+
+
 class _Grid:
     """Flat padded image layout: pixel ``(v, u)`` sits at ``(v + pad) * Wp + u + pad``.
 
     Invalid pixels (and the border) hold far-away points, each at its own position
     (``_SENTINEL`` metres apart), so no distance test ever pairs them. Shifting an image by a pixel
-    offset is then a contiguous slice, and the work is split into row strips that stay in cache and
-    run on threads (numpy releases the GIL).
+    offset is then a contiguous slice; the dense work is split into row strips that stay in cache
+    and run on threads (numpy releases the GIL).
     """
 
     def __init__(self, shape: tuple[int, int], pad: int = _GRID_CAP) -> None:
@@ -330,22 +348,30 @@ class _Grid:
         """Flat index of the first element (left border column) of row ``v0``."""
         return self.base + v0 * self.Wp
 
+    def core(self, flat: np.ndarray) -> np.ndarray:
+        return flat[self.base:self.base + self.H * self.Wp].reshape(self.H, self.Wp)[:, self.pad:self.pad + self.W]
+
     def embed_points(self, depth: np.ndarray, valid: np.ndarray, xn: np.ndarray, yn: np.ndarray) -> list[np.ndarray]:
         """Points ``z * (xn, yn, 1)`` as three flat padded arrays, invalid pixels at sentinel positions."""
-        far = _SENTINEL * (1.0 + np.arange(self.size, dtype=np.float64))
-        z = np.where(valid, depth, 0.0).astype(np.float64)
+        far = _far(self.size)
+        z = depth.astype(np.float64)
         out = []
-        for comp in (xn * z, yn * z, z):
+        for c in range(3):
             a = far.copy()
-            core = a[self.base:self.base + self.H * self.Wp].reshape(self.H, self.Wp)[:, self.pad:self.pad + self.W]
-            core[...] = np.where(valid, comp, core)
+            core = self.core(a)
+            np.copyto(core, z if c == 2 else (xn if c == 0 else yn) * z, where=valid)
             out.append(a)
         return out
 
-    def flat_index(self, pixels: np.ndarray) -> np.ndarray:
-        """Flat padded index of unpadded flat pixel indices."""
-        v, u = np.divmod(pixels, self.W)
+    def flat_index(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
         return (v + self.pad) * self.Wp + u + self.pad
+
+
+@lru_cache(maxsize=4)
+def _far(size: int) -> np.ndarray:
+    a = _SENTINEL * (1.0 + np.arange(size, dtype=np.float64))
+    a.setflags(write=False)
+    return a
 
 
 def _run(fn, items, threads: int) -> list:
@@ -355,15 +381,20 @@ def _run(fn, items, threads: int) -> list:
         return list(ex.map(lambda it: fn(*it), items))
 
 
+def _chunks(n: int, parts: int) -> list[tuple[int, int]]:
+    edges = np.linspace(0, n, max(1, min(parts, n)) + 1).astype(int)
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
 _PRODUCTS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
-def _strip_sums(G: _Grid, X: list[np.ndarray], bound: np.ndarray, r2: float, v0: int, v1: int) -> np.ndarray:
-    """Neighbourhood sums of the strip's pixels (rows ``v0..v1``) plus one halo row below.
+def _strip_sums(G: _Grid, X: list[np.ndarray], r2: float, v0: int, v1: int) -> np.ndarray:
+    """Ring-1 neighbourhood sums of the strip's pixels (rows ``v0..v1``) plus one halo row below.
 
-    Ring 1 pairs are visited once (offsets to the right/below) and added to both ends; rings >= 2
-    are visited from each pixel whose window ``bound`` reaches them. Returns ``(10, (v1-v0+1)*Wp+2)``:
-    count, sums of ``q - p`` (3) and of their products (6), in the layout starting at row ``v0``.
+    Every pair of 8-neighbours is visited once (offsets right/below) and added to both ends.
+    Returns ``(10, (v1-v0+1)*Wp+2)``: count (self included), sums of ``q - p`` (3) and of their
+    products (6), in the layout starting at row ``v0``.
     """
     L = (v1 - v0) * G.Wp
     s0 = G.start(v0)
@@ -392,82 +423,92 @@ def _strip_sums(G: _Grid, X: list[np.ndarray], bound: np.ndarray, r2: float, v0:
             np.multiply(t[a], d[b], out=tmp)
             acc[4 + k, :L] += tmp
             acc[4 + k, off:off + L] += tmp
-    # rings >= 2, from each pixel whose bound reaches them (every offset, own side only)
-    bs = bound[v0:v1]
-    deep = np.flatnonzero((bs >= 2).ravel())
-    if deep.size:
-        vv, uu = np.divmod(deep, G.W)
-        loc = vv * G.Wp + uu + G.pad          # position in the strip layout
-        w = bs.ravel()[deep]
-        for k in range(2, int(min(_GRID_CAP, np.floor(w.max()))) + 1):
-            sel = w >= k
-            lk = loc[sel]
-            fp = s0 + lk
-            pk = [X[c][fp] for c in range(3)]
-            for dv, du in _ring(k):
-                fq = fp + G.offset(dv, du)
-                dk = [X[c][fq] - pk[c] for c in range(3)]
-                hit = np.flatnonzero(dk[0] * dk[0] + dk[1] * dk[1] + dk[2] * dk[2] <= r2)
-                if hit.size:
-                    lh = lk[hit]
-                    dh = [dk[c][hit] for c in range(3)]
-                    acc[0, lh] += 1.0
-                    for c in range(3):
-                        acc[1 + c, lh] += dh[c]
-                    for j, (a, b) in enumerate(_PRODUCTS):
-                        acc[4 + j, lh] += dh[a] * dh[b]
     return acc
 
 
-def _strip_closest(G: _Grid, Xr: list[np.ndarray], Xq: list[np.ndarray], fp: np.ndarray, z: np.ndarray,
-                   b: np.ndarray, v0: int, v1: int) -> tuple[np.ndarray, np.ndarray]:
-    """Closest denoised point to the scored pixels ``fp`` (flat padded, all in rows ``v0..v1``).
+def _deep_sums(G: _Grid, X: list[np.ndarray], sums: np.ndarray, fp: np.ndarray, pos: np.ndarray,
+               reach: np.ndarray, groups, r2: float) -> None:
+    """Add the neighbours at Chebyshev distance >= 2 of the pixels ``fp`` (flat padded; ``pos`` their
+    columns in ``sums``) to ``sums``.
 
-    Rings 0 and 1 are searched for the whole strip; then, pixel by pixel (vectorised), further
-    rings until no unvisited pixel can be closer: beyond ring ``k`` every point is at least
-    ``(k + 1) z / (b + k + 1)`` away (``z`` reference depth, ``b`` the bound factor). Returns
-    ``(flat index of the closest point, still open at the cap)``.
+    Offsets are visited in increasing normalised length ``e``, each only from the pixels whose
+    ``reach`` (the normalised radius any neighbour can lie in) is at least ``e``.
+    """
+    p = None
+    for e, offsets in groups:
+        keep = reach >= e
+        if p is None or not keep.all():
+            fp, pos, reach = fp[keep], pos[keep], reach[keep]
+            if fp.size == 0:
+                return
+            p = [X[c][fp] for c in range(3)]
+        for dv, du in offsets:
+            fq = fp + G.offset(dv, du)
+            dx, dy, dz = X[0][fq] - p[0], X[1][fq] - p[1], X[2][fq] - p[2]
+            hit = np.flatnonzero(dx * dx + dy * dy + dz * dz <= r2)
+            if hit.size:
+                ph = pos[hit]
+                dh = (dx[hit], dy[hit], dz[hit])
+                sums[0, ph] += 1.0
+                for c in range(3):
+                    sums[1 + c, ph] += dh[c]
+                for j, (a, b) in enumerate(_PRODUCTS):
+                    sums[4 + j, ph] += dh[a] * dh[b]
+
+
+def _strip_closest(G: _Grid, Xr: list[np.ndarray], Xq: list[np.ndarray], fp: np.ndarray, v0: int,
+                   v1: int) -> tuple[np.ndarray, np.ndarray]:
+    """Closest denoised point among the 3x3 window of each scored pixel ``fp`` (flat padded, rows ``v0..v1``).
+
+    Returns ``(squared distance, flat index of that point)``.
     """
     L = (v1 - v0) * G.Wp
     s0 = G.start(v0)
     offsets = [G.offset(dv, du) for dv, du in _ring(0) + _ring(1)]
-    best = np.full(L, np.inf)
-    arg = np.zeros(L, np.int8)
-    d, t, d2 = np.empty(L), np.empty(L), np.empty(L)
-    better = np.empty(L, bool)
+    D2 = np.empty((len(offsets), L))
+    d, t = np.empty(L), np.empty(L)
     p = [Xr[c][s0:s0 + L] for c in range(3)]
     for k, off in enumerate(offsets):
+        d2 = D2[k]
         np.subtract(Xq[0][s0 + off:s0 + off + L], p[0], out=d)
         np.multiply(d, d, out=d2)
         for c in (1, 2):
             np.subtract(Xq[c][s0 + off:s0 + off + L], p[c], out=d)
             np.multiply(d, d, out=t)
             d2 += t
-        np.less(d2, best, out=better)
-        np.copyto(best, d2, where=better)
-        np.copyto(arg, k, where=better)
     loc = fp - s0
-    bd = best[loc]
-    qi = fp + np.asarray(offsets)[arg[loc]]
-    todo = np.flatnonzero(bd > (2.0 * z / (b + 2.0) * (1.0 - 1e-9)) ** 2)
-    for k in range(2, _GRID_CAP + 1):
+    sub = D2[:, loc]
+    arg = np.argmin(sub, axis=0)
+    return sub[arg, np.arange(loc.size)], fp + np.asarray(offsets)[arg]
+
+
+def _deep_closest(G: _Grid, Xr, Xq, fp, bd, qi, z, s, groups, beyond: float) -> np.ndarray:
+    """Widen the closest-point search of pixels ``fp`` (in place on ``bd``/``qi``) until proven.
+
+    After visiting every offset shorter than ``e`` (normalised), no unvisited pixel's point can be
+    closer than ``e z / (s + e)``. Returns the positions still open after the window cap.
+    """
+    lengths = [e for e, _ in groups] + [beyond]
+    todo = np.arange(fp.size)
+    for g, (e, offsets) in enumerate(groups):
+        bound = lengths[g] * z[todo] / (s[todo] + lengths[g]) * (1.0 - 1e-9)
+        todo = todo[bd[todo] > bound * bound]
         if todo.size == 0:
-            break
+            return todo
         ft = fp[todo]
         pk = [Xr[c][ft] for c in range(3)]
         bdt, qit = bd[todo], qi[todo]
-        for dv, du in _ring(k):
+        for dv, du in offsets:
             fq = ft + G.offset(dv, du)
-            dk = [Xq[c][fq] - pk[c] for c in range(3)]
-            d2k = dk[0] * dk[0] + dk[1] * dk[1] + dk[2] * dk[2]
-            closer = d2k < bdt
-            bdt = np.where(closer, d2k, bdt)
-            qit = np.where(closer, fq, qit)
+            dx, dy, dz = Xq[0][fq] - pk[0], Xq[1][fq] - pk[1], Xq[2][fq] - pk[2]
+            d2 = dx * dx + dy * dy + dz * dz
+            closer = d2 < bdt
+            if closer.any():
+                bdt = np.where(closer, d2, bdt)
+                qit = np.where(closer, fq, qit)
         bd[todo], qi[todo] = bdt, qit
-        todo = todo[bdt > ((k + 1) * z[todo] / (b[todo] + k + 1) * (1.0 - 1e-9)) ** 2]
-    still_open = np.zeros(fp.size, bool)
-    still_open[todo] = True
-    return qi, still_open
+    bound = beyond * z[todo] / (s[todo] + beyond) * (1.0 - 1e-9)
+    return todo[bd[todo] > bound * bound]
 
 
 def _ball_pairs(tree: cKDTree, queries: np.ndarray, r: float, self_index: np.ndarray):
@@ -500,13 +541,17 @@ def _neighbour_sums_pairs(pts, pos, i, j):
 def _planes_from_sums(sums: np.ndarray, min_neighbors: int, min_spread_ratio: float):
     """``(10, m)`` neighbourhood sums to (centroid offset ``(m, 3)``, normal ``(m, 3)``, status ``(m,)``)."""
     n = sums[0]
-    mean = (sums[1:4] / n).T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv_n = 1.0 / n
+    mu_all = sums[1:4] * inv_n
+    mean = mu_all.T
     status = np.full(n.size, 2, np.int8)
     normal = np.full((n.size, 3), np.nan)
-    fit = np.flatnonzero(n >= min_neighbors)
-    if fit.size:
-        mu, Sf, nf = mean[fit].T, sums[4:10, fit], n[fit]
-        C = [Sf[k] / nf - mu[a] * mu[c] for k, (a, c) in enumerate(_PRODUCTS)]
+    ok = n >= min_neighbors
+    fit = slice(None) if ok.all() else np.flatnonzero(ok)
+    if ok.any():
+        mu, Sf, inv = mu_all[:, fit], sums[4:10, fit], inv_n[fit]
+        C = [Sf[k] * inv - mu[a] * mu[c] for k, (a, c) in enumerate(_PRODUCTS)]
         _, lam_mid, lam_max, v = smallest_eigh3(*C)
         with np.errstate(invalid="ignore"):
             plane = (lam_mid > (min_spread_ratio ** 2) * lam_max) & np.isfinite(v).all(axis=1)
@@ -522,6 +567,7 @@ class ReferencePlanes:
     Attributes:
         mask: ``(H, W)`` bool, the reference points ``R``.
         index: ``(N,)`` flat pixel indices of ``R`` (row-major, increasing).
+        position: ``(H*W,)`` int32, the position of each pixel in ``index`` (-1 outside ``R``).
         points: ``(N, 3)`` reference points, metres.
         neighbors: ``(N,)`` neighbourhood sizes (the point itself included).
         centroid_offset: ``(N, 3)`` neighbourhood centroid minus point, metres.
@@ -532,6 +578,7 @@ class ReferencePlanes:
 
     mask: np.ndarray
     index: np.ndarray
+    position: np.ndarray
     points: np.ndarray
     neighbors: np.ndarray
     centroid_offset: np.ndarray
@@ -541,7 +588,8 @@ class ReferencePlanes:
     radius_m: float
     intrinsics: Intrinsics
     grid_points: list[np.ndarray] | None = None   # the points in _Grid layout (grid method)
-    pixel_normals: np.ndarray | None = None        # normal_map of the reference, filled by frame_metrics
+    grid_index: np.ndarray | None = None          # (N,) flat padded index of each point (grid method)
+    pixel_normals: np.ndarray | None = None       # normal_map of the reference, filled by frame_metrics
 
 
 def _resolve_method(method: str, intrinsics: Intrinsics) -> str:
@@ -565,7 +613,7 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
         roi: optional ``(H, W)`` bool region of interest.
         radius_m, min_neighbors, min_spread_ratio: see :class:`MetricConfig`.
         method: ``"grid"``, ``"kdtree"`` or ``"auto"`` (grid unless the intrinsics have distortion).
-        threads: threads for the grid strips and KD-tree queries.
+        threads: threads for the grid search and the KD-tree queries.
     """
     MetricConfig(radius_m=radius_m, min_neighbors=min_neighbors, min_spread_ratio=min_spread_ratio)
     if ref.ndim != 2 or intrinsics.shape != ref.shape:
@@ -574,57 +622,69 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
         raise MetricInputError(f"ROI mask {roi.shape} must have the reference's shape {ref.shape}")
     method = _resolve_method(method, intrinsics)
     r = float(radius_m)
-    xn, yn, b = _rays(intrinsics)
+    H, W = ref.shape
+    xn, yn, sq = _rays(intrinsics)
     R = reference_mask(ref, roi)
-    idx = np.flatnonzero(R)
-    z = ref.ravel()[idx].astype(np.float64)
-    pts = np.stack([xn.ravel()[idx] * z, yn.ravel()[idx] * z, z], axis=1)
-    if idx.size == 0:
-        return ReferencePlanes(R, idx, pts, np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 3)),
-                               np.zeros(0, np.int8), method, r, intrinsics, None)
-    mean = np.empty((idx.size, 3))
-    normal = np.empty((idx.size, 3))
-    status = np.empty(idx.size, np.int8)
-    count = np.empty(idx.size)
-    grid_points = None
+    vv, uu = np.nonzero(R)
+    idx = vv * W + uu
+    position = np.full(H * W, -1, np.int32)
+    position[idx] = np.arange(idx.size, dtype=np.int32)
+    z = ref[vv, uu].astype(np.float64)
+    pts = np.stack([xn[vv, uu] * z, yn[vv, uu] * z, z], axis=1)
+    N = idx.size
+    if N == 0:
+        return ReferencePlanes(R, idx, position, pts, np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 3)),
+                               np.zeros(0, np.int8), method, r, intrinsics)
+    grid_points = grid_index = None
     if method == "grid":
         G = _Grid(ref.shape)
         X = grid_points = G.embed_points(ref, R, xn, yn)
+        fi = grid_index = G.flat_index(vv, uu)
         with np.errstate(divide="ignore", invalid="ignore"):
-            zz = np.where(R, ref, 0.0).astype(np.float64)
-            bound = np.where(zz > r, b * r / (zz - r), 0.0) * (1.0 + 1e-9) + 1e-9
-            bound[R & (zz <= r)] = np.inf
-        fallback = bound >= _GRID_CAP + 1
-        bound[fallback] = 0.0                      # the KD-tree does these
-        parts = _run(lambda v0, v1: _strip_sums(G, X, bound, r * r, v0, v1), G.strips, threads)
-        acc = np.zeros((10, G.size + G.Wp + 2))
-        for (v0, _), part in zip(G.strips, parts):  # halo rows overlap the next strip: add in order
-            s0 = G.start(v0)
-            acc[:, s0:s0 + part.shape[1]] += part
-        fi = G.flat_index(idx)
-        bounds = np.searchsorted(idx, [v0 * G.W for v0, _ in G.strips] + [G.H * G.W])
+            reach = np.where(z > r, r * sq[vv, uu] / (z - r), np.inf) * (1.0 + 1e-9) + 1e-12
+        beyond = _beyond_cap(intrinsics)
+        fallback = reach >= beyond
+        parts = _run(lambda v0, v1: _strip_sums(G, X, r * r, v0, v1), G.strips, threads)
+        for k in range(len(parts) - 1):          # each strip's halo row belongs to the next strip
+            parts[k + 1][:, :G.Wp + 2] += parts[k][:, -(G.Wp + 2):]
+        sums = np.empty((10, N))
+        cuts = np.searchsorted(idx, [v0 * W for v0, _ in G.strips] + [H * W])
 
-        def planes_of_strip(a, e):
-            sums = acc[:, fi[a:e]]
-            mean[a:e], normal[a:e], status[a:e] = _planes_from_sums(sums, min_neighbors, min_spread_ratio)
-            count[a:e] = sums[0]
+        def gather(k):
+            a, b = cuts[k], cuts[k + 1]
+            sums[:, a:b] = parts[k][:, fi[a:b] - G.start(G.strips[k][0])]
 
-        _run(planes_of_strip, list(zip(bounds[:-1], bounds[1:])), threads)
-        fb_pos = np.flatnonzero(fallback.ravel()[idx])
+        _run(gather, [(k,) for k in range(len(parts))], threads)
+        del parts
+        groups = _deep_groups(intrinsics.fx, intrinsics.fy)
+        deep = np.flatnonzero((reach >= groups[0][0]) & ~fallback)
+        if deep.size:
+            _run(lambda a, b: _deep_sums(G, X, sums, fi[deep[a:b]], deep[a:b], reach[deep[a:b]], groups, r * r),
+                 _chunks(deep.size, max(threads, deep.size // _STRIP_ELEMENTS)), threads)
+        mean = np.empty((N, 3))
+        normal = np.empty((N, 3))
+        status = np.empty(N, np.int8)
+
+        def planes_of(a, b):
+            mean[a:b], normal[a:b], status[a:b] = _planes_from_sums(sums[:, a:b], min_neighbors, min_spread_ratio)
+
+        _run(planes_of, _chunks(N, max(threads, N // _STRIP_ELEMENTS)), threads)
+        count = sums[0].copy()
+        fb_pos = np.flatnonzero(fallback)
         if fb_pos.size:   # points so close to the camera that the window cap is too small
             i, j = _ball_pairs(cKDTree(pts), pts[fb_pos], r, fb_pos)
-            sums = _neighbour_sums_pairs(pts, fb_pos, i, j)
-            mean[fb_pos], normal[fb_pos], status[fb_pos] = _planes_from_sums(sums, min_neighbors, min_spread_ratio)
-            count[fb_pos] = sums[0]
+            fb_sums = _neighbour_sums_pairs(pts, fb_pos, i, j)
+            mean[fb_pos], normal[fb_pos], status[fb_pos] = _planes_from_sums(fb_sums, min_neighbors, min_spread_ratio)
+            count[fb_pos] = fb_sums[0]
     else:
         pairs = cKDTree(pts).query_pairs(r, output_type="ndarray")
         i = np.concatenate([pairs[:, 0], pairs[:, 1]])
         j = np.concatenate([pairs[:, 1], pairs[:, 0]])
-        sums = _neighbour_sums_pairs(pts, np.arange(len(pts)), i, j)
+        sums = _neighbour_sums_pairs(pts, np.arange(N), i, j)
         mean, normal, status = _planes_from_sums(sums, min_neighbors, min_spread_ratio)
         count = sums[0]
-    return ReferencePlanes(R, idx, pts, count.astype(np.int32), mean, normal, status, method, r, intrinsics,
-                           grid_points)
+    return ReferencePlanes(R, idx, position, pts, count.astype(np.int32), mean, normal, status, method, r,
+                           intrinsics, grid_points, grid_index)
 
 
 def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.ndarray | None = None,
@@ -643,7 +703,7 @@ def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *,
             ``"auto"`` (grid when possible). Both are exact and give the same result.
         planes: :func:`fit_reference_planes` of this ``ref``/``roi`` to reuse (the radius,
             thresholds and method above are then ignored).
-        threads: threads for the grid strips and KD-tree queries.
+        threads: threads for the grid search and the KD-tree queries.
 
     Returns:
         A :class:`PlaneFitResult` (``rmse_mm`` and per-pixel distances, neighbour counts, status).
@@ -665,31 +725,44 @@ def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *,
     ev = np.flatnonzero(eval_mask)
     if ev.size == 0:
         return PlaneFitResult(float("nan"), distance, neighbors, status, planes.method)
-    pos = np.searchsorted(planes.index, ev)
+    pos = planes.position[ev]
     st = planes.status[pos]
     used = np.flatnonzero(st == 1)          # only planes need a closest point
     ev_used, pos_used = ev[used], pos[used]
     p_used = planes.points[pos_used]
-    xn, yn, b = _rays(intrinsics)
+    xn, yn, sq = _rays(intrinsics)
     q = np.empty((used.size, 3))
     todo = np.arange(used.size)
     if planes.method == "grid" and used.size:
         G = _Grid(ref.shape)
         Xq = G.embed_points(pred, pred_valid, xn, yn)
-        fp = G.flat_index(ev_used)
-        bounds = np.searchsorted(ev_used, [v0 * G.W for v0, _ in G.strips] + [G.H * G.W])
-        bu = b.ravel()[ev_used]
-        todo_parts = []
+        fp = planes.grid_index[pos_used]
+        cuts = np.searchsorted(ev_used, [v0 * W for v0, _ in G.strips] + [H * W])
+        bd, qi = np.empty(used.size), np.empty(used.size, np.int64)
 
-        def closest_of_strip(v0, v1, a, e):
-            qi, still_open = _strip_closest(G, planes.grid_points, Xq, fp[a:e], p_used[a:e, 2], bu[a:e], v0, v1)
-            for c in range(3):
-                q[a:e, c] = Xq[c][qi]
-            todo_parts.append(a + np.flatnonzero(still_open))
+        def near(v0, v1, a, b):
+            bd[a:b], qi[a:b] = _strip_closest(G, planes.grid_points, Xq, fp[a:b], v0, v1)
 
-        _run(closest_of_strip, [(v0, v1, a, e) for (v0, v1), a, e in zip(G.strips, bounds[:-1], bounds[1:]) if e > a],
-             threads)
-        todo = np.sort(np.concatenate(todo_parts)) if todo_parts else todo[:0]
+        _run(near, [(v0, v1, a, b) for (v0, v1), a, b in zip(G.strips, cuts[:-1], cuts[1:]) if b > a], threads)
+        z = p_used[:, 2]
+        s = sq.ravel()[ev_used]
+        groups = _deep_groups(intrinsics.fx, intrinsics.fy)
+        bound = groups[0][0] * z / (s + groups[0][0]) * (1.0 - 1e-9)
+        deep = np.flatnonzero(bd > bound * bound)
+        open_parts = []
+        if deep.size:
+            def widen(a, b):
+                sel = deep[a:b]
+                sbd, sqi = bd[sel], qi[sel]
+                still = _deep_closest(G, planes.grid_points, Xq, fp[sel], sbd, sqi, z[sel], s[sel], groups,
+                                      _beyond_cap(intrinsics))
+                bd[sel], qi[sel] = sbd, sqi
+                open_parts.append(sel[still])
+
+            _run(widen, _chunks(deep.size, max(threads, deep.size // _STRIP_ELEMENTS)), threads)
+        for c in range(3):
+            q[:, c] = Xq[c][qi]
+        todo = np.sort(np.concatenate(open_parts)) if open_parts else todo[:0]
     if todo.size:
         qv = np.flatnonzero(pred_valid)
         zq = pred.ravel()[qv].astype(np.float64)

@@ -52,8 +52,10 @@ def test_sigkill_at_random_moments(source, tmp_path):
     lost = []
     for attempt in range(KILLS):
         out = tmp_path / f"rec{attempt}"
-        proc = subprocess.Popen([sys.executable, "-m", "depthbench", "capture", "record", "--rig", str(rig),
-                                 "--out", str(out), "--buffer", str(BUFFER_S), "--quiet"],
+        # the recorder's library entry (what `depthbench capture record` calls), without the CLI's imports
+        code = ("import sys; from capture.recorder import record; from capture.rig import load_rig; "
+                f"record(load_rig(sys.argv[1]), sys.argv[2], buffer_s={BUFFER_S})")
+        proc = subprocess.Popen([sys.executable, "-c", code, str(rig), str(out)],
                                 cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         t0 = time.monotonic()
         while not (out / "session.json").exists():

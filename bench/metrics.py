@@ -17,7 +17,9 @@ plane through all reference points within ``radius_m`` of ``p`` (``p`` itself in
 (total least squares: through the centroid, normal = eigenvector of the smallest eigenvalue of the
 neighbourhood covariance). For every scored point (pixels ``M``) the closest point ``q*`` of the
 denoised point cloud (prediction finite inside the ROI) is found, and ``|n . (q* - c)|`` is that
-point's distance. The metric is the RMSE of these distances over scored points, in mm.
+point's distance. The metric is the RMSE of these distances over scored points, in mm. When several
+denoised points are exactly equally close (frequent with depth quantised to 1 mm), the one with the
+lowest row-major pixel index is taken, so every implementation gives the same number.
 
 A point is excluded, and counted, when its neighbourhood has fewer than ``min_neighbors`` points
 (``plane_fit_excluded_few``) or does not span a plane (``plane_fit_excluded_degenerate``: the
@@ -464,7 +466,7 @@ def _strip_closest(G: _Grid, Xr: list[np.ndarray], Xq: list[np.ndarray], fp: np.
     """
     L = (v1 - v0) * G.Wp
     s0 = G.start(v0)
-    offsets = [G.offset(dv, du) for dv, du in _ring(0) + _ring(1)]
+    offsets = sorted(G.offset(dv, du) for dv, du in _ring(0) + _ring(1))   # argmin: ties -> lowest pixel index
     D2 = np.empty((len(offsets), L))
     d, t = np.empty(L), np.empty(L)
     p = [Xr[c][s0:s0 + L] for c in range(3)]
@@ -502,13 +504,31 @@ def _deep_closest(G: _Grid, Xr, Xq, fp, bd, qi, z, s, groups, beyond: float) -> 
             fq = ft + G.offset(dv, du)
             dx, dy, dz = Xq[0][fq] - pk[0], Xq[1][fq] - pk[1], Xq[2][fq] - pk[2]
             d2 = dx * dx + dy * dy + dz * dz
-            closer = d2 < bdt
+            closer = (d2 < bdt) | ((d2 == bdt) & (fq < qit))      # ties -> lowest pixel index
             if closer.any():
                 bdt = np.where(closer, d2, bdt)
                 qit = np.where(closer, fq, qit)
         bd[todo], qi[todo] = bdt, qit
     bound = beyond * z[todo] / (s[todo] + beyond) * (1.0 - 1e-9)
     return todo[bd[todo] > bound * bound]
+
+
+def _closest_kdtree(cloud: np.ndarray, queries: np.ndarray, threads: int) -> np.ndarray:
+    """Closest point of ``cloud`` (rows in pixel order) to each query; exact ties go to the lowest row.
+
+    The 8 nearest candidates from the KD-tree are re-scored with the grid search's arithmetic, so
+    both searches pick the same point when distances tie (common with depth quantised to 1 mm).
+    """
+    k = min(8, len(cloud))
+    _, cand = cKDTree(cloud).query(queries, k=k, workers=threads)
+    cand = cand.reshape(len(queries), k)
+    c = cloud[np.minimum(cand, len(cloud) - 1)]
+    d = c - queries[:, None, :]
+    d2 = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2]
+    d2[cand >= len(cloud)] = np.inf
+    best = d2.min(axis=1, keepdims=True)
+    pick = np.where(d2 == best, cand, np.iinfo(np.int64).max).min(axis=1)
+    return cloud[pick]
 
 
 def _ball_pairs(tree: cKDTree, queries: np.ndarray, r: float, self_index: np.ndarray):
@@ -766,9 +786,8 @@ def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *,
     if todo.size:
         qv = np.flatnonzero(pred_valid)
         zq = pred.ravel()[qv].astype(np.float64)
-        tree = cKDTree(np.stack([xn.ravel()[qv] * zq, yn.ravel()[qv] * zq, zq], axis=1))
-        _, k = tree.query(p_used[todo], k=1, workers=threads)
-        q[todo] = tree.data[k]
+        q[todo] = _closest_kdtree(np.stack([xn.ravel()[qv] * zq, yn.ravel()[qv] * zq, zq], axis=1), p_used[todo],
+                                  threads)
     dist = np.abs(np.einsum("ij,ij->i", planes.normal[pos_used], q - p_used - planes.centroid_offset[pos_used]))
     status.ravel()[ev] = st
     neighbors.ravel()[ev] = planes.neighbors[pos]

@@ -244,6 +244,14 @@ def test_plane_fit_without_roi_and_with_realistic_pixels():
     _compare(pred, ref, K_NARROW, None, 0.005)
 
 
+def test_plane_fit_with_millimetre_quantised_depth_breaks_ties_the_same_way():
+    # depth in whole millimetres (like the DDRNet PNGs): many closest points tie exactly
+    pred, ref, roi = noisy_pair(K_NARROW, base=1.0, bump=0.01, slant=(0.0004, 0.0002), lq_noise=0.002)
+    pred, ref = np.round(pred * 1000) / 1000, np.round(ref * 1000) / 1000
+    pred, ref = pred.astype(np.float32), ref.astype(np.float32)
+    _compare(pred, ref, K_NARROW, roi, 0.005)
+
+
 def test_plane_fit_distorted_camera_uses_the_kdtree():
     K = Intrinsics(80, 60, 70.0, 70.0, 39.5, 29.5, "opencv", (-0.1, 0.01, 0.0, 0.0, 0.0))
     pred, ref, roi = noisy_pair(K)

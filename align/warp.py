@@ -19,19 +19,25 @@ For every source pixel ``p`` with depth ``d``:
    a nearby destination pixel centre is exact on planes (up to the destination distortion's second
    order over one pixel) -- no staircase error on slanted floors and walls.
 4. Splatting: a point with continuous neighbours on all four sides covers the ``k x k`` block of
-   destination pixels around it (``k = 2`` when the destination is up to 2x finer, larger when
-   finer still), restricted to pixels within one neighbour spacing of it, so the splats of
-   neighbouring points overlap and a continuous surface leaves no holes. A point on a depth edge
-   only writes its nearest pixel: the surface behind an edge is never painted with foreground
-   values and no value is ever a mix of two surfaces (each pixel gets one point's plane value).
-5. Z-buffer: ``np.maximum.at`` on inverse depth; the nearest surface wins.
+   destination pixels around it (``k = 2`` when the destination is up to ~1.7x finer, larger when
+   finer still) within one source-grid step of it, so the splats of neighbouring points overlap and
+   a continuous surface leaves no holes. Towards a discontinuous neighbour a point reaches only
+   half way (the edge is assumed at the midpoint) and holds its depth along that axis: nothing is
+   extrapolated past the last sample of a surface, and no value is ever a mix of two surfaces.
+5. Z-buffer (``np.maximum.at`` on an int64 key): the nearest surface wins (to ~2 % of depth);
+   among splats of that surface a fixed priority of the splat's offset decides, so the choice
+   does not depend on the noisy values (taking the nearest of several noisy values of one
+   surface would bias the reference towards the camera).
 
 Output: ``float32`` metres ``(H_dst, W_dst)``, NaN where no source surface lands (occlusion
-shadows, outside the source's view, edges).
+shadows, outside the source's view, edges). Only the source rows/columns that can reach the
+destination (for depths from ``min_depth_m`` on) are processed; all steps are vectorised over
+preallocated buffers (fresh memory costs page faults that would dominate the run time).
 """
 from __future__ import annotations
 
 import math
+import sys
 import threading
 
 import numpy as np
@@ -77,8 +83,7 @@ class DepthWarper:
         Hd, Wd = K_dst.shape
         self._Wp = Wd + 2 * self.r
         self._Hp = Hd + 2 * self.r
-        self._offsets = [(a_, b_) for b_ in range(-(self.k // 2) + 1, self.k // 2 + 1 + (self.k % 2))
-                         for a_ in range(-(self.k // 2) + 1, self.k // 2 + 1 + (self.k % 2))]
+        self._offsets = _offsets(self.k)
         self._dist = K_dst.dist_coeffs.astype(np.float32) if K_dst.has_distortion else None
 
     def _source_crop(self, a: np.ndarray, min_depth_m: float) -> tuple[int, int, int, int]:
@@ -249,42 +254,76 @@ class DepthWarper:
 
         Wp = self._Wp
         trash = self._Hp * Wp  # this cell absorbs masked-out targets
-        buf = ws["zbuf"]
-        buf.fill(0)
 
-        def splat_setup(sel):  # sel: indices of the points to splat
-            su, sv = u[sel], v[sel]
-            fu = np.floor(su)
-            fv = np.floor(sv)
+        def splat_setup(sel, scratch=None):
+            """Per selected point: fractions of (u, v), z-buffer index of (floor u, floor v), dw/du, dw/dv.
+
+            With ``scratch`` (name -> preallocated array) the results live in it (no fresh memory)."""
+            n = sel.size
+            if scratch is None:
+                scratch = {k: np.empty(n, np.intp if k == "ibase" else f32) for k in
+                           ("su", "sv", "fu", "fv", "base", "idet", "sgu", "sgv", "ibase")}
+            su, sv, fu, fv, base, idet, sgu, sgv, ibase = (scratch[k][:n] for k in
+                                                            ("su", "sv", "fu", "fv", "base", "idet", "sgu", "sgv", "ibase"))
+            np.take(u, sel, out=su)
+            np.take(v, sel, out=sv)
+            np.floor(su, out=fu)
+            np.floor(sv, out=fv)
             su -= fu  # fraction u - floor(u) in [0, 1)
             sv -= fv
-            base = fv * f32(Wp)  # flat z-buffer index of pixel (fu, fv), exact in float32 (< 2**24)
+            np.multiply(fv, f32(Wp), out=base)  # flat z-buffer index of (fu, fv), exact in float32 (< 2**24)
             base += fu
             base += f32(self.r * Wp + self.r)
-            idet = 1 / det[sel]
-            sgu = gu[sel]
+            np.copyto(ibase, base, casting="unsafe")
+            np.take(det, sel, out=idet)
+            np.divide(f32(1), idet, out=idet)
+            np.take(gu, sel, out=sgu)
             sgu *= idet
-            sgv = gv[sel]
+            np.take(gv, sel, out=sgv)
             sgv *= idet
-            return su, sv, base.astype(np.intp), sgu, sgv, idet
+            return su, sv, ibase, sgu, sgv, idet
+
+        # Z-buffer key (int64, the maximum wins): its high int32 holds the top bits of w's float32
+        # pattern (positive floats sort like their bit patterns), so the nearest surface wins to
+        # ~2 % of w, then a fixed priority of the splat's offset; its low int32 holds w itself.
+        # Among splats of one surface the choice thus depends on geometry only, not on the noisy
+        # values: keeping the largest of several noisy w would bias the reference towards the camera.
+        buf = ws["zkey"]
+        buf.fill(0)
+        lo_half, hi_half = (0, 1) if sys.byteorder == "little" else (1, 0)
+        prio = _priorities(self._offsets)
+
+        def key(val, p, k_=None, c=None):
+            bits = val.view(np.int32)
+            k_ = np.empty(bits.size, np.int64) if k_ is None else k_
+            halves = k_.view(np.int32).reshape(-1, 2)
+            halves[:, lo_half] = bits
+            c = np.empty(bits.size, np.int32) if c is None else c
+            np.right_shift(bits, 18, out=c)
+            c <<= 8
+            c |= p
+            halves[:, hi_half] = c
+            return k_
 
         sel = np.flatnonzero(fast)
-        if sel.size:
-            fru, frv, ibase, sgu, sgv, _ = splat_setup(sel)
-            base_w = w[sel]
-            base_w -= sgu * fru
-            base_w -= sgv * frv  # w extrapolated on the local plane to the pixel (fu, fv)
+        n = sel.size
+        if n:
+            sc = ws["splat"]
+            fru, frv, ibase, sgu, sgv, _ = splat_setup(sel, sc)
+            base_w, val, idx, kk, cc = (sc[k][:n] for k in ("base_w", "val", "idx", "key", "c"))
+            np.take(w, sel, out=base_w)
+            np.multiply(sgu, fru, out=val)
+            base_w -= val
+            np.multiply(sgv, frv, out=val)
+            base_w -= val  # w extrapolated on the local plane to the pixel (fu, fv)
             for a_, b_ in self._offsets:
                 off = b_ * Wp + a_
-                if (a_, b_) == (0, 0):
-                    val = base_w
-                elif (a_, b_) == (1, 0):
-                    val = base_w + sgu
-                elif (a_, b_) == (0, 1):
-                    val = base_w + sgv
-                else:
-                    val = base_w + (sgu * f32(a_) + sgv * f32(b_))
-                np.maximum.at(buf, ibase + off if off else ibase, val)
+                np.multiply(sgu, f32(a_), out=val)
+                val += base_w
+                if b_:
+                    val += sgv * f32(b_) if b_ != 1 else sgv
+                np.add(ibase, off, out=idx)
+                np.maximum.at(buf, idx, key(val, prio[(a_, b_)], kk, cc))
 
         # The rest (edge points, and interior points of strongly compressed surfaces), few: a
         # pixel is covered when it lies within one grid step towards a continuous neighbour, or
@@ -313,13 +352,15 @@ class DepthWarper:
             val = (wx[e] / enx) * (sx * keep_x)
             val += (wy[e] / eny) * (sy * keep_y)
             val += w[e]
+            np.maximum(val, f32(1e-12), out=val)
             off = (B * Wp + A).astype(np.intp)
-            idx = np.where(take, eidx + off, trash)
-            np.maximum.at(buf, idx.ravel(), val.ravel())
+            idx = np.where(take, eidx + off, trash).ravel()
+            p = np.array([prio[o] for o in self._offsets], np.int32)[:, None] * np.ones_like(take, np.int32)
+            np.maximum.at(buf, idx, key(val.ravel(), p.ravel()))
         zb = buf[:trash].reshape(self._Hp, Wp)[self.r:-self.r, self.r:-self.r]
-        with np.errstate(divide="ignore"):
-            out = np.divide(f32(1), zb)
-        out[zb == 0] = np.nan
+        wv = zb.view(np.int32).reshape(zb.shape[0], zb.shape[1], 2)[:, :, lo_half].view(f32)
+        out = np.full(wv.shape, np.nan, f32)
+        np.divide(f32(1), wv, out=out, where=wv > 0)
         return out
 
     def _workspace(self) -> dict:
@@ -335,7 +376,11 @@ class DepthWarper:
             not_row_end[:, -1] = 0
             ws = {"cxp": np.zeros(N + 1, f32), "cyp": np.zeros(N + W, f32), "gxp": np.zeros(N + 1, f32),
                   "gyp": np.zeros(N + W, f32), "not_row_end": not_row_end.ravel()[:-1].copy(),
-                  "zbuf": np.zeros(self._Hp * self._Wp + 2 * self._Wp + 2 * self.k + 2, f32)}
+                  "zkey": np.zeros(self._Hp * self._Wp + 2 * self._Wp + 2 * self.k + 2, np.int64),
+                  "splat": {k: np.empty(N, t) for k, t in (
+                      ("su", f32), ("sv", f32), ("fu", f32), ("fv", f32), ("base", f32), ("idet", f32), ("sgu", f32),
+                      ("sgv", f32), ("ibase", np.intp), ("base_w", f32), ("val", f32), ("idx", np.intp),
+                      ("key", np.int64), ("c", np.int32), ("wq", f32), ("wt", f32), ("wu0", f32), ("wv0", f32))}}
             for name in ("Z", "x", "y", "t1", "t2", "nx", "ny", "ux", "uy", "vx", "vy", "wx", "wy", "det", "adet",
                          "gu", "gv", "reach"):
                 ws[name] = np.empty(N, f32)
@@ -343,6 +388,24 @@ class DepthWarper:
                 ws[name] = np.empty(N, bool)
             local.ws = ws
         return ws
+
+
+def _offsets(k: int) -> list[tuple[int, int]]:
+    """Splat offsets (a, b) from the pixel (floor u, floor v) for block size ``k``."""
+    r = range(-(k // 2) + 1, k // 2 + 1 + (k % 2))
+    return [(a, b) for b in r for a in r]
+
+
+def _priorities(offsets) -> dict:
+    """Fixed z-buffer priority of each splat offset (ties inside one surface; central offsets first)."""
+    order = sorted(offsets, key=lambda o: (abs(o[0] - 0.5) + abs(o[1] - 0.5), o))
+    return {o: len(offsets) - i for i, o in enumerate(order)}
+
+
+def _zkey(w: float, priority: int) -> tuple[int, int, int]:
+    """The z-buffer order of one splat, as the vectorised warp's int64 key orders it."""
+    bits = int(np.float32(w).view(np.int32))
+    return (bits >> 18, priority, bits)
 
 
 def _distort(x: np.ndarray, y: np.ndarray, k: np.ndarray):
@@ -398,7 +461,8 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
         ratio = max(K_dst.fx / K_src.fx, K_dst.fy / K_src.fy)
         footprint = max(2, int(math.ceil(ratio * 1.15)))
     k = footprint
-    offs = range(-(k // 2) + 1, k // 2 + 1 + (k % 2))
+    offsets = _offsets(k)
+    prio = _priorities(offsets)
     u = np.full((H, W), np.nan)
     v = np.full((H, W), np.nan)
     w = np.zeros((H, W))
@@ -419,6 +483,7 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
         return bool(w[i0, j0] > 0 and w[i1, j1] > 0 and abs(b - a) <= edge_rel * min(a, b))
 
     zbuf = np.zeros((Hd, Wd))
+    zkey = {}
     for i in range(H):
         for j in range(W):
             if w[i, j] <= 0:
@@ -444,8 +509,8 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
             lim = {(0, -1): 1.0 if conts[0][0] else 0.5, (0, 1): 1.0 if conts[0][1] else 0.5,
                    (1, -1): 1.0 if conts[1][0] else 0.5, (1, 1): 1.0 if conts[1][1] else 0.5}
             fu, fv = math.floor(u[i, j]), math.floor(v[i, j])
-            for b in offs:
-                for a in offs:
+            for a, b in offsets:
+                if True:
                     c = np.array([fu + a - u[i, j], fv + b - v[i, j]])
                     delta = Jinv @ c  # source-grid offset of the target pixel
                     inside, val = True, w[i, j]
@@ -457,7 +522,10 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
                             val += g[2] * delta[ax]
                     tu, tv = fu + a, fv + b
                     if inside and 0 <= tu < Wd and 0 <= tv < Hd:
-                        zbuf[tv, tu] = max(zbuf[tv, tu], val)
+                        kv = _zkey(max(val, 1e-12), prio[(a, b)])
+                        if (tv, tu) not in zkey or kv > zkey[(tv, tu)]:
+                            zkey[(tv, tu)] = kv
+                            zbuf[tv, tu] = val
     out = np.full((Hd, Wd), np.nan, np.float32)
     out[zbuf > 0] = (1.0 / zbuf[zbuf > 0]).astype(np.float32)
     return out

@@ -146,3 +146,21 @@ def test_naive_loop_agrees_where_it_has_values():
     inner = (slice(3, -3), slice(3, -3))  # the source image's border is an edge: values held there
     assert np.nanmax(np.abs(good - truth)[inner]) < 1e-4
     assert np.nanmax(np.abs(naive - truth)[inner]) > 1e-3
+
+
+def test_noise_is_carried_without_bias():
+    # a noisy slanted wall: the warped values must scatter around the truth, not be pulled towards
+    # the camera (as keeping the largest of several overlapping noisy inverse depths would)
+    Kh, Kl, T_lq_hq, T_hq_world, T_lq_world = _rig(scale=0.5, distortion=False)
+    shapes = [Plane((0, 0, 3.0), (0.3, 0.1, 1))]
+    dh, _, _ = cast(Kh, T_hq_world, shapes)
+    dl, _, _ = cast(Kl, T_lq_world, shapes)
+    rng = np.random.default_rng(3)
+    sigma = 0.004
+    noisy = (dh + sigma * rng.standard_normal(dh.shape)).astype(np.float32)
+    out = DepthWarper(Kh, Kl, T_lq_hq)(noisy)
+    err = (out - dl)[np.isfinite(out) & np.isfinite(dl)]
+    assert err.size > 0.5 * dl.size
+    assert abs(np.median(err)) < 0.05 * sigma
+    assert abs(np.mean(err)) < 0.05 * sigma
+    assert np.median(np.abs(err)) < 0.75 * sigma  # ~0.67 sigma for Gaussian noise carried one to one

@@ -376,6 +376,13 @@ def _far(size: int) -> np.ndarray:
     return a
 
 
+def _crop_box(vv: np.ndarray, uu: np.ndarray, shape: tuple[int, int]) -> tuple[slice, slice]:
+    """Bounding box of the pixels ``(vv, uu)`` grown by the window cap: every pixel a window search
+    from them can visit lies inside."""
+    return (slice(max(int(vv.min()) - _GRID_CAP, 0), min(int(vv.max()) + _GRID_CAP + 1, shape[0])),
+            slice(max(int(uu.min()) - _GRID_CAP, 0), min(int(uu.max()) + _GRID_CAP + 1, shape[1])))
+
+
 def _run(fn, items, threads: int) -> list:
     if threads <= 1 or len(items) <= 1:
         return [fn(*it) for it in items]
@@ -520,7 +527,8 @@ def _closest_kdtree(cloud: np.ndarray, queries: np.ndarray, threads: int) -> np.
     both searches pick the same point when distances tie (common with depth quantised to 1 mm).
     """
     k = min(8, len(cloud))
-    _, cand = cKDTree(cloud).query(queries, k=k, workers=threads)
+    tree = cKDTree(cloud, balanced_tree=False, compact_nodes=False)     # built for a few queries: build fast
+    _, cand = tree.query(queries, k=k, workers=threads)
     cand = cand.reshape(len(queries), k)
     c = cloud[np.minimum(cand, len(cloud) - 1)]
     d = c - queries[:, None, :]
@@ -609,6 +617,7 @@ class ReferencePlanes:
     intrinsics: Intrinsics
     grid_points: list[np.ndarray] | None = None   # the points in _Grid layout (grid method)
     grid_index: np.ndarray | None = None          # (N,) flat padded index of each point (grid method)
+    crop: tuple[slice, slice] | None = None       # the image window the grid covers (grid method)
     pixel_normals: np.ndarray | None = None       # normal_map of the reference, filled by frame_metrics
 
 
@@ -657,9 +666,10 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
                                np.zeros(0, np.int8), method, r, intrinsics)
     grid_points = grid_index = None
     if method == "grid":
-        G = _Grid(ref.shape)
-        X = grid_points = G.embed_points(ref, R, xn, yn)
-        fi = grid_index = G.flat_index(vv, uu)
+        crop = _crop_box(vv, uu, ref.shape)     # the reference's bounding box plus the window cap
+        G = _Grid((crop[0].stop - crop[0].start, crop[1].stop - crop[1].start))
+        X = grid_points = G.embed_points(ref[crop], R[crop], xn[crop], yn[crop])
+        fi = grid_index = G.flat_index(vv - crop[0].start, uu - crop[1].start)
         with np.errstate(divide="ignore", invalid="ignore"):
             reach = np.where(z > r, r * sq[vv, uu] / (z - r), np.inf) * (1.0 + 1e-9) + 1e-12
         beyond = _beyond_cap(intrinsics)
@@ -668,7 +678,7 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
         for k in range(len(parts) - 1):          # each strip's halo row belongs to the next strip
             parts[k + 1][:, :G.Wp + 2] += parts[k][:, -(G.Wp + 2):]
         sums = np.empty((10, N))
-        cuts = np.searchsorted(idx, [v0 * W for v0, _ in G.strips] + [H * W])
+        cuts = np.searchsorted(idx, [(crop[0].start + v0) * W for v0, _ in G.strips] + [H * W])
 
         def gather(k):
             a, b = cuts[k], cuts[k + 1]
@@ -704,7 +714,7 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
         mean, normal, status = _planes_from_sums(sums, min_neighbors, min_spread_ratio)
         count = sums[0]
     return ReferencePlanes(R, idx, position, pts, count.astype(np.int32), mean, normal, status, method, r,
-                           intrinsics, grid_points, grid_index)
+                           intrinsics, grid_points, grid_index, crop if method == "grid" else None)
 
 
 def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.ndarray | None = None,
@@ -754,10 +764,11 @@ def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *,
     q = np.empty((used.size, 3))
     todo = np.arange(used.size)
     if planes.method == "grid" and used.size:
-        G = _Grid(ref.shape)
-        Xq = G.embed_points(pred, pred_valid, xn, yn)
+        crop = planes.crop
+        G = _Grid((crop[0].stop - crop[0].start, crop[1].stop - crop[1].start))
+        Xq = G.embed_points(pred[crop], pred_valid[crop], xn[crop], yn[crop])
         fp = planes.grid_index[pos_used]
-        cuts = np.searchsorted(ev_used, [v0 * W for v0, _ in G.strips] + [H * W])
+        cuts = np.searchsorted(ev_used, [(crop[0].start + v0) * W for v0, _ in G.strips] + [H * W])
         bd, qi = np.empty(used.size), np.empty(used.size, np.int64)
 
         def near(v0, v1, a, b):

@@ -459,8 +459,9 @@ def _one_line(exc: BaseException) -> str:
 
 
 def default_writers() -> int:
-    """Encoder threads: one per core, at least two (PNG encoding releases the GIL)."""
-    return max(2, os.cpu_count() or 2)
+    """Encoder threads: one per core plus one (PNG encoding and file writes release the GIL; the
+    extra thread keeps the cores busy while another waits on a write), at least three."""
+    return max(3, (os.cpu_count() or 2) + 1)
 
 
 def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, force: bool = False,

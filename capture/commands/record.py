@@ -23,7 +23,7 @@ def add_parser(sub) -> None:
                    help="stop after S seconds (default: until every source ends, or Ctrl-C)")
     p.add_argument("--force", action="store_true", help="replace DIR if it exists")
     p.add_argument("--writers", type=int, default=None, metavar="N",
-                   help=f"PNG encoder threads (default: one per core, at least 2; here {default_writers()})")
+                   help=f"PNG encoder threads (default: one per core plus one, at least 3; here {default_writers()})")
     p.add_argument("--buffer", type=float, default=1.0, metavar="S",
                    help="seconds of frames the write queue holds before frames are dropped as writer drops (default 1)")
     p.add_argument("--no-adaptive", action="store_true",

@@ -17,7 +17,7 @@ Threads::
   and frames whose timestamps go backwards. When the queue is full the frame is dropped and
   counted as a writer drop (also part of ``dropped_frames``): the sensor is never blocked.
 * When the queue is over an eighth full the encoders write PNGs uncompressed (lossless, same
-  pixels, larger) until it drains: CPU, not the disk, is the bottleneck on small machines.
+  pixels, larger) until it has drained: CPU, not the disk, is the bottleneck on small machines.
 * A full disk (ENOSPC) stops recording: the reserve file made at the start is deleted so the
   manifest can still be written, the session is closed readable and :class:`RecordingError`
   says what happened.
@@ -264,6 +264,7 @@ class _Recorder:
         self.queue: queue.Queue[_Job | None] = queue.Queue(maxsize=max(8, int(total_fps * self.buffer_s)))
         # Falling behind (queue over an eighth full, ~0.1 s): encode PNGs uncompressed until it drains.
         self.fast_above = max(2, self.queue.maxsize // 8) if self.adaptive else self.queue.maxsize + 1
+        self.behind = False
         self.sequencer = _Sequencer(self.writer)
         encoders = [threading.Thread(target=self._encode_loop, name=f"encoder-{i}", daemon=True)
                     for i in range(self.n_writers)]
@@ -361,7 +362,7 @@ class _Recorder:
                 self.sequencer.done(key, job.seq, None, stats)
                 continue
             f = job.frame
-            fast = self.queue.qsize() > self.fast_above
+            fast = self._fast_mode()
             try:
                 rel, sha = self.writer.write_frame_file(job.sensor, job.stream, f.frame_number, f.image, fast=fast)
                 stats.fast_encoded += fast
@@ -379,6 +380,15 @@ class _Recorder:
                 stats.lost_in_flight += 1
                 self._set_fatal("error", f"sensor {job.sensor}: {_one_line(exc)}")
                 self.sequencer.done(key, job.seq, None, stats)
+
+    def _fast_mode(self) -> bool:
+        """Uncompressed PNGs from when the queue passes ``fast_above`` until it is (nearly) empty."""
+        waiting = self.queue.qsize()
+        if waiting > self.fast_above:
+            self.behind = True
+        elif waiting <= 1:
+            self.behind = False
+        return self.behind
 
     def _set_fatal(self, stopped_by: str, message: str) -> None:
         with self.fatal_lock:

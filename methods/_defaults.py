@@ -6,6 +6,7 @@ table that justifies them is ``methods/defaults_sweep.md``.
 from __future__ import annotations
 
 import json
+import math
 from functools import lru_cache
 from pathlib import Path
 
@@ -18,5 +19,5 @@ def _all() -> dict:
 
 
 def swept(method: str) -> dict:
-    """The swept defaults of ``method`` (a copy)."""
-    return dict(_all()[method])
+    """The swept defaults of ``method`` (a copy; the string ``"inf"`` is read as ``math.inf``)."""
+    return {k: (math.inf if v == "inf" else v) for k, v in _all()[method].items()}

@@ -40,7 +40,8 @@ def _resolve(sigma_spatial, sigma_color, radius, fill_holes, depth_adaptive, z_r
                               method=NAME, unit="metres", allow_inf=True)
     radius = check_radius(radius, sigma_spatial, method=NAME)
     fill_holes = check_flag(fill_holes, "fill_holes", method=NAME)
-    depth_adaptive = check_flag(depth_adaptive, "depth_adaptive", method=NAME)
+    depth_adaptive = check_flag(d.get("depth_adaptive", False) if depth_adaptive is None else depth_adaptive,
+                                "depth_adaptive", method=NAME)
     z_ref = check_sigma(Z_REF_M if z_ref is None else z_ref, "z_ref", method=NAME, unit="metres")
     return sigma_spatial, sigma_color, radius, fill_holes, depth_adaptive, z_ref
 
@@ -56,7 +57,7 @@ def range_coefficient(z: np.ndarray, sigma_color: float, *, depth_adaptive: bool
 
 
 def bilateral_filter(depth: np.ndarray, *, sigma_spatial: float | None = None, sigma_color: float | None = None,
-                     radius: int | None = None, fill_holes: bool = False, depth_adaptive: bool = False,
+                     radius: int | None = None, fill_holes: bool = False, depth_adaptive: bool | None = None,
                      z_ref: float | None = None) -> np.ndarray:
     """Hole-aware bilateral filter of a depth map (eq. 5-8).
 
@@ -69,7 +70,8 @@ def bilateral_filter(depth: np.ndarray, *, sigma_spatial: float | None = None, s
         radius: window radius in pixels; the window is the disk ``dx^2 + dy^2 <= radius^2``.
             ``None``: ``max(1, ceil(2 * sigma_spatial))``.
         fill_holes: give holes the normalised Gaussian of the valid depths around them.
-        depth_adaptive: ``sigma_color(z) = sigma_color * (z / z_ref)^2`` with ``z`` the centre depth.
+        depth_adaptive: ``sigma_color(z) = sigma_color * (z / z_ref)^2`` with ``z`` the centre depth
+            (``None``: the swept default).
         z_ref: the depth in metres at which ``sigma_color`` applies when ``depth_adaptive`` (default 2).
 
     Returns:
@@ -107,7 +109,8 @@ class BilateralFilter(Denoiser):
     name = NAME
     version = "1"
     description = "bilateral filter (Tomasi & Manduchi, eq. 5-8), hole-aware, range sigma in metres"
-    defaults = {**swept(NAME), "radius": None, "fill_holes": False, "depth_adaptive": False, "z_ref": Z_REF_M}
+    defaults = {"sigma_spatial": None, "sigma_color": None, "radius": None, "fill_holes": False,
+                "depth_adaptive": False, "z_ref": Z_REF_M, **swept(NAME)}   # order of listing, swept values
     param_help = {
         "sigma_spatial": "spatial Gaussian width, pixels (eq. 7)",
         "sigma_color": "range Gaussian width, metres of depth (eq. 8); inf = off",

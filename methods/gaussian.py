@@ -58,7 +58,7 @@ class GaussianFilter(Denoiser):
     name = NAME
     version = "1"
     description = "normalised Gaussian over valid depth (eq. 1-2, 10): the range-blind baseline"
-    defaults = {**swept(NAME), "radius": None, "fill_holes": False}
+    defaults = {"sigma_spatial": None, "radius": None, "fill_holes": False, **swept(NAME)}
     param_help = {
         "sigma_spatial": "Gaussian width, pixels",
         "radius": "window: disk of this radius in pixels; none = ceil(2 * sigma_spatial)",

@@ -81,7 +81,7 @@ class JointBilateralFilter(Denoiser):
     version = "1"
     description = "joint bilateral filter: range kernel on the colour image (L2, 0-255 units), hole-aware"
     uses_color = True
-    defaults = {**swept(NAME), "radius": None, "fill_holes": False}
+    defaults = {"sigma_spatial": None, "sigma_color": None, "radius": None, "fill_holes": False, **swept(NAME)}
     param_help = {
         "sigma_spatial": "spatial Gaussian width, pixels",
         "sigma_color": "range Gaussian width on the colour guide, 0-255 levels (Euclidean over RGB); inf = off",

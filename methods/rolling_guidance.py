@@ -46,14 +46,15 @@ def _resolve(sigma_spatial, sigma_color, iterations, radius, fill_holes, depth_a
     iterations = check_iterations(d["iterations"] if iterations is None else iterations, method=NAME)
     radius = check_radius(radius, sigma_spatial, method=NAME)
     fill_holes = check_flag(fill_holes, "fill_holes", method=NAME)
-    depth_adaptive = check_flag(depth_adaptive, "depth_adaptive", method=NAME)
+    depth_adaptive = check_flag(d.get("depth_adaptive", False) if depth_adaptive is None else depth_adaptive,
+                                "depth_adaptive", method=NAME)
     z_ref = check_sigma(Z_REF_M if z_ref is None else z_ref, "z_ref", method=NAME, unit="metres")
     return sigma_spatial, sigma_color, iterations, radius, fill_holes, depth_adaptive, z_ref
 
 
 def rolling_guidance_filter(depth: np.ndarray, *, sigma_spatial: float | None = None,
                             sigma_color: float | None = None, iterations: int | None = None,
-                            radius: int | None = None, fill_holes: bool = False, depth_adaptive: bool = False,
+                            radius: int | None = None, fill_holes: bool = False, depth_adaptive: bool | None = None,
                             z_ref: float | None = None) -> np.ndarray:
     """Hole-aware Rolling Guidance Filter of a depth map (eq. 10, then eq. 11 repeated).
 
@@ -65,7 +66,7 @@ def rolling_guidance_filter(depth: np.ndarray, *, sigma_spatial: float | None = 
         iterations: passes including the Gaussian one (>= 1); ``None``: the swept default.
         radius: disk radius in pixels; ``None``: ``max(1, ceil(2 * sigma_spatial))``.
         fill_holes: return the final iterate at holes too (NaN only where no depth is in reach).
-        depth_adaptive: ``sigma_color(p) = sigma_color * (J^t(p) / z_ref)^2``.
+        depth_adaptive: (``None``: the swept default) ``sigma_color(p) = sigma_color * (J^t(p) / z_ref)^2``.
         z_ref: depth in metres where ``sigma_color`` applies when ``depth_adaptive`` (default 2).
 
     Returns:
@@ -99,7 +100,8 @@ class RollingGuidanceFilter(Denoiser):
     name = NAME
     version = "1"
     description = "rolling guidance filter (Zhang et al., eq. 9-11): Gaussian, then joint bilateral of I by J^t"
-    defaults = {**swept(NAME), "radius": None, "fill_holes": False, "depth_adaptive": False, "z_ref": Z_REF_M}
+    defaults = {"sigma_spatial": None, "sigma_color": None, "iterations": None, "radius": None, "fill_holes": False,
+                "depth_adaptive": False, "z_ref": Z_REF_M, **swept(NAME)}   # order of listing, swept values
     param_help = {
         "sigma_spatial": "structure scale, pixels: smaller structures are removed (eq. 9-11)",
         "sigma_color": "range width on the guide J^t, metres of depth (eq. 11)",

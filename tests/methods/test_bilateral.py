@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from methods import MethodError, get
-from methods.bilateral import bilateral_filter
+from functools import partial
+
+from methods import bilateral
+
+# the tests pin every parameter (the swept default of depth_adaptive is True); a call may still set it
+bilateral_filter = partial(bilateral.bilateral_filter, depth_adaptive=False)
 from methods.tools.synthetic import synthetic_scene
 
 
@@ -136,8 +141,8 @@ def test_bad_depth(depth, fragment):
 
 
 def test_denoiser_class_delegates(small):
-    m = get("bilateral", sigma_spatial=1.5, sigma_color=0.02, radius=3)
+    m = get("bilateral", sigma_spatial=1.5, sigma_color=0.02, radius=3, depth_adaptive=False)
     np.testing.assert_array_equal(m.denoise(small), bilateral_filter(small, sigma_spatial=1.5, sigma_color=0.02,
                                                                       radius=3))
-    assert m.key != get("bilateral", sigma_spatial=1.5, sigma_color=0.03, radius=3).key
+    assert m.key != get("bilateral", sigma_spatial=1.5, sigma_color=0.03, radius=3, depth_adaptive=False).key
     assert "sigma_color=0.02" in m.key

@@ -7,7 +7,12 @@ import pytest
 
 from methods import MethodError, get
 from methods._kernels import joint_mean
-from methods.rolling_guidance import rolling_guidance_filter
+from functools import partial
+
+from methods import rolling_guidance
+
+# the tests pin every parameter (the swept default of depth_adaptive is True); a call may still set it
+rolling_guidance_filter = partial(rolling_guidance.rolling_guidance_filter, depth_adaptive=False)
 
 
 def _gaussian_pass(I, sigma_s, radius):

@@ -605,7 +605,11 @@ def _one_line(exc: BaseException) -> str:
 # ============================================================================ the live driver
 @register
 class RealSenseDriver(Driver):
-    """A live Intel RealSense camera (D400 family and others the SDK supports)."""
+    """A live Intel RealSense camera (D400 family and others the SDK supports).
+
+    With ``options.file`` it plays a ``.db3`` recording in real time instead, through the same
+    code (for rigs without the camera, and for testing this driver without hardware); ``serial``
+    must then be the recording's serial or ``"*"``, and sync/options are not applied."""
 
     name = "realsense"
     description = "Intel RealSense depth cameras (pyrealsense2): depth, colour, infrared with per-frame metadata"
@@ -614,6 +618,7 @@ class RealSenseDriver(Driver):
         super().__init__(config)
         self._source: RealSenseSource | None = None
         self._ctx = None
+        self._playback = None
         self._done = False
 
     @classmethod
@@ -646,7 +651,10 @@ class RealSenseDriver(Driver):
             raise RigError(f"sensor {config.label}: sync.inter_cam_sync_mode must be 0-260 "
                            f"(0 default, 1 master, 2 slave, 3 full slave), got {config.sync['inter_cam_sync_mode']}")
         for key, value in config.options.items():
-            if key == "global_time":
+            if key == "file":
+                if not isinstance(value, str):
+                    raise RigError(f"sensor {config.label}: options.file must be the path of a .db3 recording")
+            elif key == "global_time":
                 if not isinstance(value, bool):
                     raise RigError(f"sensor {config.label}: options.global_time must be true or false")
             elif not hasattr(rs.option, key):
@@ -663,22 +671,52 @@ class RealSenseDriver(Driver):
         except RuntimeError as exc:
             raise DeviceError(f"{self.config.label}: cannot set {key} = {value}: {_one_line(exc)}") from None
 
+    def _playback_device(self, path: str):
+        """``options.file``: a recording played in real time as if it were the camera (sync not applied)."""
+        try:
+            recorded_frame_counts(path)
+            device = self._ctx.load_device(path)
+        except (SessionFormatError, RuntimeError) as exc:
+            raise DeviceError(f"{self.config.label}: cannot play {path}: {_one_line(exc)}") from None
+        serial = device.get_info(rs.camera_info.serial_number) if device.supports(rs.camera_info.serial_number) else "?"
+        if self.config.serial not in ("*", serial):
+            raise DeviceError(f"{self.config.label}: recording {path} is of camera {serial}, not {self.config.serial}")
+        playback = device.as_playback()
+        playback.set_real_time(True)
+        playback.pause()
+
+        def on_status(status) -> None:  # the SDK's thread must not stop its own sensors: hand it over
+            if status == rs.playback_status.stopped and self._source is not None:
+                threading.Thread(target=self._source.finish, name="realsense-playback-end", daemon=True).start()
+
+        playback.set_status_changed_callback(on_status)
+        self._playback = playback
+        return device
+
     def open(self) -> SensorDescription:
         self.check_config(self.config)
         self._ctx = rs.context()
-        devices = list(self._ctx.query_devices())
-        serials = [d.get_info(rs.camera_info.serial_number) for d in devices]
-        if self.config.serial not in serials:
-            seen = ", ".join(serials) if serials else "none"
-            raise DeviceError(f"{self.config.label}: no RealSense camera with serial {self.config.serial} "
-                              f"is connected (connected: {seen})")
-        device = devices[serials.index(self.config.serial)]
+        options = dict(self.config.options)
+        if "file" in options:
+            device = self._playback_device(options.pop("file"))
+        else:
+            devices = list(self._ctx.query_devices())
+            serials = [d.get_info(rs.camera_info.serial_number) for d in devices]
+            if self.config.serial not in serials:
+                seen = ", ".join(serials) if serials else "none"
+                raise DeviceError(f"{self.config.label}: no RealSense camera with serial {self.config.serial} "
+                                  f"is connected (connected: {seen})")
+            device = devices[serials.index(self.config.serial)]
         depth_sensor = next((s for s in device.query_sensors() if s.is_depth_sensor()), None)
-        for key, value in self.config.sync.items():
+        if self._playback is not None:  # a recording: its options and sync are what was recorded
+            options, sync = {}, {}
+        else:
+            sync = self.config.sync
+        for key, value in sync.items():
             if depth_sensor is None:
                 raise DeviceError(f"{self.config.label}: no depth sensor to apply sync.{key} to")
             self._set_option(depth_sensor, key, value)
-        for key, value in self.config.options.items():
+        for key, value in options.items():
             if key == "global_time":
                 for s in device.query_sensors():
                     if s.supports(rs.option.global_time_enabled):
@@ -689,11 +727,15 @@ class RealSenseDriver(Driver):
         self._source = RealSenseSource(device, requests, label=self.config.label, blocking=False)
         desc = self._source.description
         clock = dict(desc.clock)
-        if "inter_cam_sync_mode" in self.config.sync:
-            clock["inter_cam_sync_mode"] = self.config.sync["inter_cam_sync_mode"]
+        if "inter_cam_sync_mode" in sync:
+            clock["inter_cam_sync_mode"] = sync["inter_cam_sync_mode"]
+        if self._playback is not None:
+            clock["played_from"] = str(Path(self.config.options["file"]).resolve())
         desc = SensorDescription(desc.model, desc.serial, desc.streams, desc.firmware, desc.technology,
                                  desc.T_depth_color, clock)
         self._source.start()
+        if self._playback is not None:
+            self._playback.resume()
         return desc
 
     def read(self, *, timeout_s: float) -> list[Frame] | None:

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import datetime
+import json
 import time
 
 import numpy as np
@@ -20,6 +21,7 @@ from capture.drivers.base import SensorConfig, StreamSettings
 from capture.drivers.oakd import (OakDDriver, build_pipeline, dai, imgframe_to_frame, intrinsics_from_calibration,
                                   timedelta_us, transform_from_calibration)
 from capture.errors import CalibrationError, DeviceError, RigError
+from tests.capture.inproc_cli import run_inproc
 from tests.conftest import assert_one_line_error
 
 
@@ -43,13 +45,13 @@ def test_no_device_enumerates_none_and_open_is_a_clear_error():
     assert drv.read(timeout_s=0.01) is None
 
 
-def test_devices_command_says_none_found(cli):
+def test_devices_command_says_none_found(cli, capfd):
     r = cli("capture", "devices")
     assert r.returncode == 0, r.stderr
     assert "realsense  no devices found" in r.stdout and "oakd       no devices found" in r.stdout
     assert "No RealSense or OAK device found." in r.stdout
-    r = cli("capture", "devices", "--json", "--driver", "oakd")
-    assert r.returncode == 0 and '"devices": []' in r.stdout
+    r = run_inproc(capfd, "capture", "devices", "--json", "--driver", "oakd")
+    assert r.returncode == 0 and json.loads(r.stdout) == [{"driver": "oakd", "problem": None, "devices": []}]
 
 
 def test_recording_a_rig_with_an_oakd_is_one_line_error(tmp_path, cli):

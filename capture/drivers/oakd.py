@@ -245,8 +245,10 @@ class OakDDriver(Driver):
             raise DeviceError(f"{self.config.label}: cannot start the OAK pipeline: {' '.join(str(exc).split())}") from None
         descs = {}
         for n in streams:
-            descs[n] = StreamDescription(n, n, size[0], size[1], fps, "png16" if n == "depth" else "png", K,
-                                         DEPTH_UNIT_M if n == "depth" else None)
+            asked = self.config.streams.get(n)
+            encoding = (asked.encoding if asked is not None and asked.encoding else None) or (
+                "png16" if n == "depth" else "png")
+            descs[n] = StreamDescription(n, n, size[0], size[1], fps, encoding, K, DEPTH_UNIT_M if n == "depth" else None)
         model = self._device.getProductName() or "Luxonis OAK-D"
         clock = {"domain": "device", "host_synced_timestamps": "frame metadata host_synced_timestamp_us",
                  "depth_aligned_to": "CAM_A"}

@@ -294,10 +294,11 @@ class RealSenseSource:
                 asked = f"{want.width or '*'}x{want.height or '*'} @ {want.fps or '*'} fps"
                 raise self._error(f"{self.label}: the device has no {name} stream {asked}")
             _, sensor, v = best
-            chosen[name] = _Selected(name, v, sensor, self._stream_description(name, kind, sensor, v), v.format())
+            desc = self._stream_description(name, kind, sensor, v, want.encoding if want is not None else None)
+            chosen[name] = _Selected(name, v, sensor, desc, v.format())
         return chosen
 
-    def _stream_description(self, name: str, kind: str, sensor, v) -> StreamDescription:
+    def _stream_description(self, name: str, kind: str, sensor, v, encoding: str | None = None) -> StreamDescription:
         conv = intrinsics_from_rs(v.get_intrinsics(), what=f"{self.label}: {name} intrinsics")
         if not conv.exact:
             self.notes.setdefault("intrinsics_fitted", {})[name] = {
@@ -310,7 +311,7 @@ class RealSenseSource:
             unit = f32(sensor.as_depth_sensor().get_depth_scale())
             if not unit > 0:
                 raise self._error(f"{self.label}: depth scale {unit} is not positive")
-        encoding = "png" if kind == "color" else "png16"
+        encoding = encoding or ("png" if kind == "color" else "png16")  # the rig may ask for jpeg colour
         return StreamDescription(name, kind, v.width(), v.height(), float(v.fps()), encoding, conv.intrinsics, unit)
 
     def _describe(self) -> SensorDescription:

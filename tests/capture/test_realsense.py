@@ -333,11 +333,19 @@ def test_live_driver_records_through_the_recorder_from_a_played_recording(record
     rig = tmp_path / "rig.toml"
     rig.write_text(f'name = "rs"\n[[sensor]]\nid = "lq"\nrole = "lq"\ndriver = "realsense"\nserial = "{LQ.serial}"\n'
                    f'[sensor.options]\nfile = "{lq}"\n[[sensor]]\nid = "hq"\nrole = "hq"\ndriver = "realsense"\n'
-                   f'serial = "*"\n[sensor.options]\nfile = "{hq}"\n[sensor.streams.depth]\ntype = "depth"\n')
+                   f'serial = "*"\n[sensor.options]\nfile = "{hq}"\n[sensor.streams.depth]\ntype = "depth"\n'
+                   f'[[sensor]]\nid = "lq2"\nrole = "view"\ndriver = "realsense"\nserial = "*"\n[sensor.options]\n'
+                   f'file = "{lq}"\n[sensor.streams.color]\ntype = "color"\nencoding = "jpeg"\n')
     r = run_inproc(capfd, "capture", "record", "--rig", rig, "--out", tmp_path / "rec", "--quiet")
     assert r.returncode == 0, r.stderr
     s = open_session(tmp_path / "rec", verify="full")
     assert set(s.sensors["hq"].streams) == {"depth"} and s.intrinsics("hq", "depth").fx == 365.5
+    assert s.stream("lq2", "color").encoding == "jpeg" and s.stream("lq", "color").encoding == "png"
+    n = int(s.frames("lq2", "color")["frame_number"].iloc[0])
+    jpeg = s.read_color("lq2", n).astype(int)
+    i = LQ.color_frame_numbers.index(n)
+    errors = [np.abs(jpeg - LQ.color_image(j)).mean() for j in range(len(LQ.color_frame_numbers))]
+    assert int(np.argmin(errors)) == i and errors[i] < 0.7 * sorted(errors)[1]  # lossy, but that image (noise)
     # real-time playback may skip a frame when the SDK runs late (it is real time, like a camera);
     # whatever arrives keeps its number and timestamp, and every gap is reported as a drop
     for sid, stream, spec in (("lq", "depth", LQ), ("lq", "color", LQ), ("hq", "depth", HQ)):

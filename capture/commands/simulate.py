@@ -39,8 +39,8 @@ def add_parser(sub) -> None:
     p.add_argument("--static", action="store_true", help="nothing moves (the time shift is then unobservable)")
     p.add_argument("--scale", type=float, default=1.0,
                    help="multiply every image size, e.g. 0.25 for quick runs (default: %(default)s)")
-    p.add_argument("--lq-fps", type=float, default=30.0, help="LQ frame rate (default: %(default)s)")
-    p.add_argument("--hq-fps", type=float, default=30.0, help="HQ frame rate (default: %(default)s)")
+    p.add_argument("--lq-fps", type=float, default=30.0, help="frame rate of the LQ / view sensors (default: %(default)s)")
+    p.add_argument("--hq-fps", type=float, default=30.0, help="frame rate of the HQ sensor (default: %(default)s)")
     p.add_argument("--color-format", choices=("auto", "png", "jpeg"), default="auto",
                    help="encoding of the colour streams; auto: PNG for LQ, JPEG for HQ as Azure Kinect records (default: %(default)s)")
     p.add_argument("--workers", type=int, default=None,

@@ -83,13 +83,13 @@ def _lathe(profile_r: np.ndarray, profile_z: np.ndarray, segments: int) -> tuple
     return v, np.array(tris)
 
 
-def sphere(radius: float, *, segments: int = 24, rings: int = 12) -> tuple[np.ndarray, np.ndarray]:
+def sphere(radius: float, *, segments: int = 20, rings: int = 10) -> tuple[np.ndarray, np.ndarray]:
     """A UV sphere centred at the origin."""
     th = np.linspace(np.pi, 0, rings + 1)
     return _lathe(radius * np.sin(th), radius * np.cos(th), segments)
 
 
-def capsule(radius: float, length: float, *, segments: int = 16, cap_rings: int = 4) -> tuple[np.ndarray, np.ndarray]:
+def capsule(radius: float, length: float, *, segments: int = 12, cap_rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """A capsule along the local z axis from z = 0 down to z = -length (radius included).
 
     Limbs hang from their joint at the origin, so a rotation of the part is a rotation

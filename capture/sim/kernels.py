@@ -114,3 +114,16 @@ def expose(rgb, noise_seed, noise_dn, out):
                             + ((h >> np.uint64(16)) & np.uint64(255)) + ((h >> np.uint64(24)) & np.uint64(255)))
             x = rgb[i, k] * np.float32(255.0) + (s4 - np.float32(510.0)) * scale
             out[i, k] = np.uint8(min(max(np.rint(x), np.float32(0.0)), np.float32(255.0)))
+
+
+@njit(cache=True, nogil=True)
+def depth_counts(depth, unit):
+    """Float metres ``(H, W)`` (NaN = none) to uint16 counts of ``unit`` metres (0 = none or out
+    of range); the same numbers as :func:`capture.session.encode_depth`, without temporaries."""
+    out = np.empty(depth.shape, dtype=np.uint16)
+    flat_in = depth.ravel()
+    flat_out = out.ravel()
+    for i in range(flat_in.size):
+        c = np.rint(np.float64(flat_in[i]) / unit)
+        flat_out[i] = np.uint16(c) if (c >= 1.0 and c <= 65535.0) else np.uint16(0)
+    return out

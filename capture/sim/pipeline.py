@@ -15,7 +15,8 @@ from typing import Iterator
 import cv2
 import numpy as np
 
-from capture.session import PNG_PARAMS, encode_depth
+from capture.session import PNG_PARAMS
+from capture.sim.kernels import depth_counts
 from capture.sim.output import TRUTH_DEPTH_UNIT_M, Plan
 from capture.sim.render import Renderer, camera_rays
 from capture.sim.scene import build_scene
@@ -96,9 +97,9 @@ class FrameWorker:
         for stage, s in self.renderer.stage_s.items():
             timings[stage] = s - before[stage]
         with timings("encode"):
-            files = {"depth": (encode_png16(encode_depth(frame.depth, spec.depth_unit_m)), "png"),
+            files = {"depth": (encode_png16(depth_counts(frame.depth, spec.depth_unit_m)), "png"),
                      "color": encode_color(frame.color, plan.color_encoding_of(sid)),
-                     "truth": (encode_png16(encode_depth(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
+                     "truth": (encode_png16(depth_counts(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
         return EncodedFrame(sid, i, fn, files, dict(timings))
 
 

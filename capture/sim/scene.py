@@ -194,7 +194,7 @@ def _figure_parts(ids: _Ids, rng: np.random.Generator) -> list[Part]:
             v = v * np.array([0.75, 1.15, 1.0])
         parts.append(Part(v, t, ids.new(Material(fine_m=float(rng.uniform(0.02, 0.04)), coarse_m=0.1,
                                                  patch_m=0.25, dark_fraction=0.1, flat_fraction=0.05))))
-    parts.append(Part(*sphere(0.11, segments=20, rings=10), ids.new(Material(fine_m=0.03, dark_fraction=0.0))))
+    parts.append(Part(*sphere(0.11, segments=16, rings=8), ids.new(Material(fine_m=0.03, dark_fraction=0.0))))
     return parts
 
 

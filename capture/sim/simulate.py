@@ -54,11 +54,13 @@ class SimulationResult:
     declared: bool
     elapsed_s: float
     timings_s: dict[str, float]
+    reference_fps: float = 30.0
 
     @property
     def scene_frames_per_s(self) -> float:
-        """Frames of scene time (1/30 s at 30 fps) simulated per second of wall time."""
-        return self.seconds * 30.0 / self.elapsed_s if self.elapsed_s > 0 else float("inf")
+        """Frames of scene time (one period of the reference sensor, 1/30 s by default, of every
+        stream) simulated per second of wall time."""
+        return self.seconds * self.reference_fps / self.elapsed_s if self.elapsed_s > 0 else float("inf")
 
 
 def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float = 5.0, seed: int = 0,
@@ -89,7 +91,10 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
     plan = make_plan(rig=rig, scene=scene, seconds=seconds, seed=seed, effects=effects, undeclared=undeclared,
                      time_shift_us=time_shift_us, static=static, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps,
                      color_encoding=color_encoding, name=name)
-    writer = SessionWriter(out, session_manifest(plan), force=force, staged=True)
+    try:
+        writer = SessionWriter(out, session_manifest(plan), force=force, staged=True)
+    except OSError as exc:
+        raise SimulationError(f"--out {out}: cannot create the session folder ({exc.strerror or exc})") from None
     timings = Timings()
     try:
         truth = TruthWriter(writer.root, plan)
@@ -97,6 +102,9 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         with timings("truth"):
             truth.close()
         root = writer.close()
+    except OSError as exc:
+        writer.abort()
+        raise SimulationError(f"--out {out}: writing failed, nothing was kept ({exc.strerror or exc})") from None
     except BaseException:
         writer.abort()
         raise
@@ -104,7 +112,8 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         Path(root), plan.rig.name, plan.scene_name, plan.seed, plan.seconds,
         {sid: len(s) for sid, s in plan.schedules.items()},
         {sid: len(s.dropped_frame_numbers) for sid, s in plan.schedules.items()},
-        plan.time_shift_us, dict(plan.effects), plan.declared, time.perf_counter() - started, dict(timings))
+        plan.time_shift_us, dict(plan.effects), plan.declared, time.perf_counter() - started, dict(timings),
+        plan.rig.sensor(plan.rig.reference).fps)
 
 
 # ----------------------------------------------------------------------------- planning

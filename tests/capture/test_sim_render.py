@@ -102,3 +102,14 @@ def test_texture_gives_many_feature_matches():
         q = Kb.project(T_wb.inverse().apply(lq.T_world_depth.apply(p)))[0]
         correct += np.hypot(*(q - kb[m.trainIdx].pt)) < 3
     assert correct > 300 and correct > 0.8 * len(good), (correct, len(good))
+
+
+def test_depth_counts_kernel_equals_session_encoder():
+    from capture.session import encode_depth
+    from capture.sim.kernels import depth_counts
+    rng = np.random.default_rng(0)
+    d = (rng.random((48, 64)) * 8).astype(np.float32)
+    d[rng.random(d.shape) < 0.1] = np.nan
+    d[0, :6] = [-1, 0, 1e-5, 0.00049999, 70, np.inf]
+    for unit in (0.001, 0.0001):
+        assert np.array_equal(depth_counts(d, unit), encode_depth(d, unit))

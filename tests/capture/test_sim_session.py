@@ -172,3 +172,9 @@ def test_cli_simulate_and_errors(cli, tmp_path):
     assert not (tmp_path / "x").exists()
     h = cli("capture", "simulate", "--help")
     assert h.returncode == 0 and "clock_drift_ppm" in h.stdout and "--undeclared" in h.stdout
+
+
+def test_unwritable_output_is_a_clean_error(tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    with pytest.raises(SimulationError, match="cannot create the session folder"):
+        simulate(tmp_path / "file" / "s", rig="lq-hq", scene="planes", seconds=0.04, scale=0.1, progress=False)

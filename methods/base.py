@@ -97,20 +97,26 @@ def check_sigma(value: Any, name: str, *, method: str, unit: str, allow_inf: boo
     return v
 
 
+def _integer_in(value: Any, low: int, high: int) -> bool:
+    """True for an integral number (``3`` or ``3.0``, not ``True``) within ``[low, high]``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer, float, np.floating)):
+        return False
+    v = float(value)
+    return bool(np.isfinite(v)) and v == int(v) and low <= int(v) <= high
+
+
 def check_radius(value: Any, sigma_spatial: float, *, method: str) -> int:
     """Window radius in pixels: an integer >= 1; ``None`` derives ``max(1, ceil(2 * sigma_spatial))``."""
     if value is None:
         return max(1, int(np.ceil(2.0 * sigma_spatial - 1e-9)))
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer, float, np.floating)) \
-            or float(value) != int(value) or not 1 <= int(value) <= 100:
+    if not _integer_in(value, 1, 100):
         raise MethodError(f"{method}: radius must be an integer number of pixels from 1 to 100 (or none), got {value!r}")
     return int(value)
 
 
 def check_iterations(value: Any, *, method: str) -> int:
     """An iteration count: an integer >= 1."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer, float, np.floating)) \
-            or float(value) != int(value) or not 1 <= int(value) <= 1000:
+    if not _integer_in(value, 1, 1000):
         raise MethodError(f"{method}: iterations must be an integer from 1 to 1000, got {value!r}")
     return int(value)
 

@@ -114,6 +114,9 @@ def test_sigma_color_inf_is_the_gaussian():
     (dict(sigma_spatial=-1.0), "sigma_spatial"),
     (dict(radius=0), "radius must be an integer"),
     (dict(radius=2.5), "radius must be an integer"),
+    (dict(radius=math.inf), "radius must be an integer"),
+    (dict(sigma_spatial=math.nan), "sigma_spatial"),
+    (dict(sigma_color="wide"), "sigma_color must be a number"),
     (dict(fill_holes="yes"), "fill_holes must be true or false"),
     (dict(z_ref=-2.0), "z_ref"),
 ])

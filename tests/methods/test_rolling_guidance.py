@@ -172,6 +172,7 @@ def test_holes_stay_holes_and_are_not_pulled_to_zero():
     (dict(sigma_spatial=-3.0), "sigma_spatial must be a positive"),
     (dict(iterations=0), "iterations must be an integer"),
     (dict(iterations=2.5), "iterations must be an integer"),
+    (dict(iterations=float("nan")), "iterations must be an integer"),
 ])
 def test_bad_parameters(kwargs, fragment):
     with pytest.raises(MethodError, match=fragment):

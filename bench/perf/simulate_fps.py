@@ -24,7 +24,6 @@ import argparse
 import os
 import shutil
 import tempfile
-import time
 from pathlib import Path
 
 import capture.sim.pipeline as pipeline

@@ -17,7 +17,7 @@ from pathlib import Path
 from capture.camera import Intrinsics
 from capture.sim.clocks import Clock, Schedule
 from capture.sim.rigs import Rig, SensorSpec
-from depthbench.fsutil import atomic_write_json, atomic_write_text, sha256_bytes
+from depthbench.fsutil import atomic_write_json, atomic_write_text
 
 TRUTH_FORMAT = "depthbench.truth"
 TRUTH_FORMAT_VERSION = "1.0"
@@ -167,15 +167,15 @@ class TruthWriter:
         for s in plan.rig.sensors:
             (self.root / s.id / "depth").mkdir(parents=True, exist_ok=True)
 
-    def add(self, sensor: str, i: int, png: bytes) -> None:
+    def add(self, sensor: str, i: int, png: bytes, sha256: str) -> None:
         """Record frame ``i`` of ``sensor``'s schedule with its noise-free depth as an encoded
-        uint16 PNG in :data:`TRUTH_DEPTH_UNIT_M` units."""
+        uint16 PNG in :data:`TRUTH_DEPTH_UNIT_M` units (and the PNG's sha256)."""
         s = self.plan.schedules[sensor]
         fn = int(s.frame_number[i])
         rel = f"{sensor}/depth/{fn:08d}.png"
         write_file(self.root, rel, png)
         self.rows[sensor].append((fn, int(s.scene_time_us[i]), int(s.device_timestamp_us[i]),
-                                  int(s.host_timestamp_us[i]), int(s.host_jitter_us[i]), rel, sha256_bytes(png)))
+                                  int(s.host_timestamp_us[i]), int(s.host_jitter_us[i]), rel, sha256))
 
     def close(self) -> None:
         for sensor, rows in self.rows.items():

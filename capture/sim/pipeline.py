@@ -29,13 +29,14 @@ Event = tuple[int, int, str, int]
 
 @dataclass
 class EncodedFrame:
-    """A rendered frame, encoded: ``files`` maps ``depth``/``color``/``truth`` to ``(bytes, ext)``;
+    """A rendered frame, encoded: ``files`` maps ``depth``/``color``/``truth`` to
+    ``(bytes, extension, sha256)``;
     ``stage_s``: seconds spent per stage on it."""
 
     sensor: str
     index: int
     frame_number: int
-    files: dict[str, tuple[bytes, str]]
+    files: dict[str, tuple[bytes, str, str]]
     stage_s: dict[str, float]
 
 
@@ -100,6 +101,7 @@ class FrameWorker:
             files = {"depth": (encode_png16(depth_counts(frame.depth, spec.depth_unit_m)), "png"),
                      "color": encode_color(frame.color, plan.color_encoding_of(sid)),
                      "truth": (encode_png16(depth_counts(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
+            files = {k: (data, ext, sha256_bytes(data)) for k, (data, ext) in files.items()}
         return EncodedFrame(sid, i, fn, files, dict(timings))
 
 
@@ -120,7 +122,3 @@ def render_frames(plan: Plan, events: list[Event], *, workers: int) -> Iterator[
         pool.kill()
         raise
     pool.close()
-
-
-def frame_sha(data: bytes) -> str:
-    return sha256_bytes(data)

@@ -26,7 +26,6 @@ from capture.sim.pipeline import EncodedFrame, Event, render_frames
 from capture.sim.rigs import Rig, build_rig
 from capture.sim.scene import build_scene
 from capture.sim.sensors import Timings
-from depthbench.fsutil import sha256_bytes
 
 COLOR_ENCODINGS = ("auto", "png", "jpeg")
 
@@ -189,8 +188,9 @@ def _write_frame(plan: Plan, writer: SessionWriter, truth: TruthWriter, enc: Enc
     sched = plan.schedules[enc.sensor]
     dev, host = int(sched.device_timestamp_us[enc.index]), int(sched.host_timestamp_us[enc.index])
     for stream in ("depth", "color"):
-        data, ext = enc.files[stream]
+        data, ext, sha = enc.files[stream]
         rel = f"{enc.sensor}/{stream}/{enc.frame_number:08d}.{ext}"
         write_file(writer.root, rel, data)
-        writer.index_frame(enc.sensor, stream, enc.frame_number, dev, host, rel, sha256_bytes(data))
-    truth.add(enc.sensor, enc.index, enc.files["truth"][0])
+        writer.index_frame(enc.sensor, stream, enc.frame_number, dev, host, rel, sha)
+    data, _, sha = enc.files["truth"]
+    truth.add(enc.sensor, enc.index, data, sha)

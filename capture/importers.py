@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import csv
 import io
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 import logging
 import os
 import re
@@ -109,6 +111,10 @@ class _Builder:
         from tqdm import tqdm
 
         self._bar = tqdm(total=total, unit="frame", desc=desc, leave=False, disable=None if progress else True)
+        workers = max(2, os.cpu_count() or 2)
+        self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="import-encode")
+        self._pending: deque = deque()
+        self._max_pending = 2 * workers
 
     def add(self, sensor_id: str, frame: Frame) -> None:
         rep = self.reports[sensor_id].get(frame.stream)
@@ -127,8 +133,11 @@ class _Builder:
                 return
             rep.dropped += frame.frame_number - lf - 1
             host = max(host, lh)
-        self.writer.add_frame(sensor_id, frame.stream, frame.frame_number, frame.device_timestamp_us, host,
-                              frame.image)
+        # encode + write on the pool (PNG encoding releases the GIL), index in arrival order
+        future = self._pool.submit(self.writer.write_frame_file, sensor_id, frame.stream, frame.frame_number,
+                                   frame.image)
+        self._pending.append((future, sensor_id, frame.stream, frame.frame_number, frame.device_timestamp_us, host))
+        self._drain(self._max_pending)
         self._last[key] = (frame.frame_number, frame.device_timestamp_us, host)
         rep.frames += 1
         if rep.first_device_us is None:
@@ -138,9 +147,18 @@ class _Builder:
         if frame.metadata:
             self._metadata[sensor_id].append({"stream": frame.stream, "frame_number": frame.frame_number,
                                               "clock_domain": frame.clock_domain, **frame.metadata})
-        self._bar.update(1)
+
+    def _drain(self, keep: int) -> None:
+        """Index finished frames, in submission order, until at most ``keep`` are in flight."""
+        while len(self._pending) > keep or (self._pending and self._pending[0][0].done()):
+            future, sid, stream, number, dev, host = self._pending.popleft()
+            rel, sha = future.result()
+            self.writer.index_frame(sid, stream, number, dev, host, rel, sha)
+            self._bar.update(1)
 
     def finish(self, notes: dict[str, Any] | None = None) -> ImportResult:
+        self._drain(0)
+        self._pool.shutdown()
         self._bar.close()
         sensors = self.writer.manifest["sensors"]
         skipped = {}
@@ -181,6 +199,10 @@ class _Builder:
         atomic_write_text(self.writer.root / sid / "frame_metadata.csv", buf.getvalue())
 
     def abort(self) -> None:
+        for future, *_ in self._pending:
+            future.cancel()
+        self._pool.shutdown(wait=True)
+        self._pending.clear()
         self._bar.close()
         self.writer.abort()
 

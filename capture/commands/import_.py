@@ -17,7 +17,7 @@ def add_parser(sub) -> None:
     kinds.required = True
 
     rs = kinds.add_parser(
-        "realsense", help="RealSense recordings (.db3, ROS2 format of librealsense 2.59; .bag if the SDK reads it)",
+        "realsense", help="RealSense recordings (.db3: the ROS2 format librealsense 2.59 records)",
         description="Play RealSense recordings through pyrealsense2 (not real time: every frame) into one "
                     "session, one sensor per file: depth (required), colour and infrared with frame counters, "
                     "timestamps and their clock domain, per-frame metadata (SENSOR/frame_metadata.csv), factory "

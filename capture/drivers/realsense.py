@@ -472,7 +472,9 @@ def recorded_frame_counts(path: str | Path) -> dict[tuple[Any, int], int]:
     except OSError as exc:
         raise SessionFormatError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if head != _SQLITE_MAGIC:
-        what = "empty file" if not head else "not an SQLite database"
+        what = ("empty file" if not head else
+                "a ROS1 .bag of an older librealsense; record with librealsense 2.59, which writes .db3"
+                if head.startswith(b"#ROSBAG") else "not an SQLite database")
         raise SessionFormatError(f"{path}: not a RealSense .db3 recording ({what})")
     try:
         con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)

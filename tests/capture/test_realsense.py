@@ -234,7 +234,7 @@ def test_corrupt_frame_data_is_detected(recordings, tmp_path, capfd):
     assert not (tmp_path / "s").exists()
 
 
-@pytest.mark.parametrize("content,message", [(b"", "empty file"), (b"#ROSBAG V2.0\n" + b"\0" * 100, "not an SQLite"),
+@pytest.mark.parametrize("content,message", [(b"", "empty file"), (b"#ROSBAG V2.0\n" + b"\0" * 100, "ROS1 .bag"),
                                              (b"hello", "not an SQLite")])
 def test_not_a_recording_is_one_line_error(tmp_path, capfd, content, message):
     bad = tmp_path / "x.db3"

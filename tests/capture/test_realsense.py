@@ -19,11 +19,10 @@ import pandas as pd
 import pyrealsense2 as rs
 import pytest
 
-from capture.camera import Intrinsics, Transform
+from capture.camera import Transform
 from capture.drivers.base import SensorConfig, StreamSettings
-from capture.drivers.realsense import (RealSenseDriver, f32, intrinsics_from_rs, recorded_frame_counts,
-                                       transform_from_rs)
-from capture.errors import CalibrationError, DeviceError, RigError, SessionFormatError
+from capture.drivers.realsense import RealSenseDriver, intrinsics_from_rs, recorded_frame_counts, transform_from_rs
+from capture.errors import CalibrationError, DeviceError, RigError
 from capture.session import decode_depth, open_session
 from tests.capture.realsense_synth import SynthSpec, record_synthetic
 from tests.capture.inproc_cli import run_inproc
@@ -100,8 +99,7 @@ def recordings(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def imported(recordings, tmp_path_factory):
-    from tests.conftest import CliResult  # noqa: F401  (the fixture `cli` is function-scoped)
-    import subprocess
+    import subprocess  # the `cli` fixture is function-scoped; this one runs once for the module
     import sys
 
     out = tmp_path_factory.mktemp("sessions") / "desk"

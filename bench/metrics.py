@@ -172,6 +172,44 @@ def fill_rate(pred: np.ndarray, ref: np.ndarray, roi: np.ndarray | None = None) 
 
 
 # --------------------------------------------------------------------------------- normals
+def _normal_components(depth: np.ndarray, intrinsics: Intrinsics,
+                       box: tuple[slice, slice] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The three components of :func:`normal_map` as ``(H, W)`` arrays (NaN where undefined), or of
+    the window ``box`` of the image only (its border pixels then have no normal)."""
+    if depth.shape != intrinsics.shape:
+        raise MetricInputError(f"depth has shape {depth.shape}, intrinsics are {intrinsics.width}x{intrinsics.height}")
+    xn, yn, _ = _rays(intrinsics)
+    if box is not None:
+        depth, xn, yn = depth[box], xn[box], yn[box]
+    z = np.where(_finite_positive(depth), depth, np.nan).astype(np.float64)
+    x, y = xn * z, yn * z
+    c = (slice(1, -1), slice(1, -1))
+    l, r, u, d = (slice(1, -1), slice(None, -2)), (slice(1, -1), slice(2, None)), \
+        (slice(None, -2), slice(1, -1)), (slice(2, None), slice(1, -1))
+    ax, ay, az = x[r] - x[l], y[r] - y[l], z[r] - z[l]          # along u
+    bx, by, bz = x[d] - x[u], y[d] - y[u], z[d] - z[u]          # along v
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv = 1.0 / np.sqrt(cx * cx + cy * cy + cz * cz)
+        inv = np.where(cz > 0, -inv, inv)                        # towards the camera
+        inv[~np.isfinite(z[c]) | ~np.isfinite(inv)] = np.nan
+    out = []
+    for comp in (cx, cy, cz):
+        full = np.full(depth.shape, np.nan)
+        full[c] = comp * inv
+        out.append(full)
+    return out[0], out[1], out[2]
+
+
+def _grown_box(mask: np.ndarray, grow: int = 1) -> tuple[slice, slice]:
+    """Bounding box of ``mask`` grown by ``grow`` pixels (the whole image when the mask is empty)."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return slice(0, mask.shape[0]), slice(0, mask.shape[1])
+    return (slice(max(rows[0] - grow, 0), min(rows[-1] + grow + 1, mask.shape[0])),
+            slice(max(cols[0] - grow, 0), min(cols[-1] + grow + 1, mask.shape[1])))
+
+
 def normal_map(depth: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
     """Surface normals of a depth image from central differences of its point cloud.
 
@@ -179,39 +217,29 @@ def normal_map(depth: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
     camera (``n_z < 0``). Returns ``(H, W, 3)`` float64, NaN where a neighbour or the pixel is invalid
     and on the image border.
     """
-    if depth.shape != intrinsics.shape:
-        raise MetricInputError(f"depth has shape {depth.shape}, intrinsics are {intrinsics.width}x{intrinsics.height}")
-    xn, yn, _ = _rays(intrinsics)
-    z = np.where(_finite_positive(depth), depth, np.nan).astype(np.float64)
-    P = np.stack([xn * z, yn * z, z], axis=-1)
-    n = np.full(P.shape, np.nan)
-    du = P[1:-1, 2:] - P[1:-1, :-2]
-    dv = P[2:, 1:-1] - P[:-2, 1:-1]
-    c = np.cross(du, dv)
-    norm = np.linalg.norm(c, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        c = c / norm
-        c = np.where(c[..., 2:3] > 0, -c, c)
-    n[1:-1, 1:-1] = np.where((norm > 0) & np.isfinite(z[1:-1, 1:-1, None]), c, np.nan)
-    return n
+    return np.stack(_normal_components(depth, intrinsics), axis=-1)
 
 
 def normal_angle_deg(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, roi: np.ndarray | None = None, *,
-                     ref_normals: np.ndarray | None = None) -> float:
+                     ref_normals: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> float:
     """Mean angle in degrees between the :func:`normal_map` normals of prediction and reference.
 
     Over pixels ``M`` where both normals are defined; NaN when there are none. ``ref_normals``:
-    ``normal_map(ref, intrinsics)`` when the caller has it.
+    the reference's normal components (``_normal_components(ref, intrinsics)``) when the caller has them.
     """
     m = valid_mask(pred, ref, roi)
-    if ref_normals is None:
-        ref_normals = normal_map(ref, intrinsics)
-    a, b = normal_map(pred, intrinsics)[m], ref_normals[m]
-    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
-    if not ok.any():
+    if not m.any():
         return float("nan")
-    cos = np.clip(np.einsum("ij,ij->i", a[ok], b[ok]), -1.0, 1.0)
-    return float(np.degrees(np.arccos(cos)).mean())
+    box = _grown_box(reference_mask(ref, roi))
+    if ref_normals is None or ref_normals[0].shape != (box[0].stop - box[0].start, box[1].stop - box[1].start):
+        ref_normals = _normal_components(ref, intrinsics, box)
+    a = _normal_components(pred, intrinsics, box)
+    m = m[box]
+    cos = a[0][m] * ref_normals[0][m] + a[1][m] * ref_normals[1][m] + a[2][m] * ref_normals[2][m]
+    cos = cos[np.isfinite(cos)]
+    if cos.size == 0:
+        return float("nan")
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).mean())
 
 
 # --------------------------------------------------------------------------------- eigen solver
@@ -618,7 +646,7 @@ class ReferencePlanes:
     grid_points: list[np.ndarray] | None = None   # the points in _Grid layout (grid method)
     grid_index: np.ndarray | None = None          # (N,) flat padded index of each point (grid method)
     crop: tuple[slice, slice] | None = None       # the image window the grid covers (grid method)
-    pixel_normals: np.ndarray | None = None       # normal_map of the reference, filled by frame_metrics
+    pixel_normals: tuple | None = None            # the reference's normal components, filled by frame_metrics
 
 
 def _resolve_method(method: str, intrinsics: Intrinsics) -> str:
@@ -845,8 +873,8 @@ def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, 
     out["plane_fit_excluded_degenerate"] = float(pf.n_excluded_degenerate)
     out["plane_fit_excluded"] = out["plane_fit_excluded_few"] + out["plane_fit_excluded_degenerate"]
     out["plane_fit_neighbors_median"] = float(np.median(pf.neighbors[M])) if M.any() else float("nan")
-    if planes.pixel_normals is None:
-        planes.pixel_normals = normal_map(ref, intrinsics)
+    if planes.pixel_normals is None and R.any():
+        planes.pixel_normals = _normal_components(ref, intrinsics, _grown_box(R))
     out["normal_angle_deg"] = normal_angle_deg(pred, ref, intrinsics, roi, ref_normals=planes.pixel_normals)
 
     bins: list[dict[str, float]] = []

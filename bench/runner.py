@@ -184,6 +184,7 @@ def _prepare_out(out: Path, config: MetricConfig, force: bool) -> tuple[Path, di
         return out, meta, False
     out.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    os.chmod(work, 0o777 & ~R.UMASK)      # mkdtemp makes 0700; a results folder is meant to be shared
     return work, None, True
 
 
@@ -380,7 +381,7 @@ def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started
     # this run's rows, from the cache
     parts = [R.cache_part(work, m.key, ds.checksum, i) for m, ds, i in needed]
     new = R.read_parts([p for p in parts if p.exists()])
-    _check_parts(new, needed)
+    _check_parts(new, needed, out)
     _check_references(new, ds_list)
 
     # earlier runs' rows that this run does not touch
@@ -401,17 +402,17 @@ def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started
     _write_manifest(work, prev_meta, table, ds_list, method_list, config, digest, started, ex.name,
                     n_todo, reused, superseded)
     if superseded:
-        log.warning("bench: superseded earlier rows of %s", "; ".join(superseded))
+        log.debug("bench: superseded earlier rows of %s", "; ".join(superseded))
     return BenchResult(out, table, n_todo, reused, superseded)
 
 
-def _check_parts(df: pd.DataFrame, needed) -> None:
+def _check_parts(df: pd.DataFrame, needed, out: Path) -> None:
     """Every needed (method key, dataset, frame) has rows with matching identity (guards the cache)."""
     have = set(zip(df["method_key"], df["dataset_checksum"], df["frame"]))
     for m, ds, i in needed:
         if (m.key, ds.checksum, i) not in have:
-            raise BenchError(f"{R.cache_part(Path('RESULTS'), m.key, ds.checksum, i)}: cache part missing or holds "
-                             f"other rows (method {m.key}, dataset {ds.name}, frame {i}); rerun with --force")
+            raise BenchError(f"{R.cache_part(out, m.key, ds.checksum, i)}: cache part missing or holds other rows "
+                             f"(method {m.key}, dataset {ds.name}, frame {i}); delete it or rerun with --force")
 
 
 def _check_references(df: pd.DataFrame, ds_list) -> None:

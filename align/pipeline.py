@@ -59,7 +59,8 @@ class AlignOptions:
 
     shift_range_ms: search Delta in [-r, +r] ms. shift_step_ms: coarse scan step.
     features: sift | orb | akaze. max_features: per image. detect_scale: images are resized by
-    this factor for detection (coordinates stay full resolution). probes: HQ frames used for the fit.
+    this factor for detection (coordinates stay full resolution); default: so that the shorter side
+    is about 240 px, at most halved (SIFT's cost falls with the square). probes: HQ frames used for the fit.
     association: nearest (eq. 28) | greedy (TUM). max_dt_ms: largest |t_LQ - (t_HQ + Delta)| of
     a kept pair (default half the LQ frame period). residual_k: a pair whose depth residual lies
     more than k MAD-sigmas above the median is dropped. time_model: constant | linear.
@@ -71,7 +72,7 @@ class AlignOptions:
     shift_step_ms: float = 2.0
     features: str = "sift"
     max_features: int = 1500
-    detect_scale: float = 0.5
+    detect_scale: float | None = None
     probes: int = 24
     association: str = "nearest"
     max_dt_ms: float | None = None
@@ -85,6 +86,7 @@ class AlignOptions:
     edge_rel: float = 0.03
     min_matches: int = 60
     progress: bool = True
+    dejitter: bool = True
 
     def check(self) -> None:
         if not self.shift_range_ms > 0:
@@ -235,7 +237,7 @@ class ProbeBuilder:
         d_hq = sess.read_depth(s.hq, int(s.f_hq[i]), stream=s.hq_depth)
         d_col = self.to_hq_color(d_hq)
         fh = detect(rgb_hq, kind=o.features, max_features=o.max_features, mask=np.isfinite(d_col),
-                    scale=o.detect_scale)
+                    scale=_detect_scale(rgb_hq, o.detect_scale))
         X = s.T_hqdepth_hqcolor.apply(lift(fh.xy, d_col, s.K_hq_color))
         ok = np.all(np.isfinite(X), axis=1)
         if ok.sum() < 2:
@@ -248,10 +250,17 @@ class ProbeBuilder:
             if k == anchor:
                 rgb_anchor = rgb
             greys.append(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY))
-        fl = detect(rgb_anchor, kind=o.features, max_features=o.max_features, scale=o.detect_scale)
+        fl = detect(rgb_anchor, kind=o.features, max_features=o.max_features,
+                    scale=_detect_scale(rgb_anchor, o.detect_scale))
         ia, ib = match(fh, fl)
         tracks = track(greys, anchor, fl.xy[ib])
         return Probe(i, t, X[ia], win, s.t_lq_c[win], tracks, anchor)
+
+
+def _detect_scale(image: np.ndarray, scale: float | None) -> float:
+    if scale is not None:
+        return float(scale)
+    return float(min(1.0, max(0.5, 240.0 / min(image.shape[:2]))))
 
 
 def build_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> tuple[list[Probe], int]:
@@ -591,7 +600,7 @@ def align_session(session, out, *, force: bool = False, lq: str | None = None, h
         return _align_multiview(sess, out, views, opts, force=force, t0=t0)
     lq = lq or _only(sess, "lq")
     hq = hq or _only(sess, "hq")
-    setup = pair_setup(sess, lq=lq, hq=hq)
+    setup = pair_setup(sess, lq=lq, hq=hq, dejitter=opts.dejitter)
     pf = fit_pair(setup, opts)
     truth = TruthSource(sess.root, lq) if opts.attach_truth and TruthSource.available(sess.root) else None
     po = write_pair_dataset(out, setup, pf, opts, force=force, truth=truth)
@@ -616,7 +625,7 @@ def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOpti
     with staged_directory(out, force=force, what="aligned multi-view dataset") as stage:
         for v in views:
             src = reference if v != reference else views[1]
-            setup = pair_setup(sess, lq=v, hq=src)
+            setup = pair_setup(sess, lq=v, hq=src, dejitter=opts.dejitter)
             fits[v] = fit_pair(setup, opts)
         T_ref = {v: fits[v].T_lq_hq.inverse() for v in views if v != reference}
         rig = compose_rig(reference, T_ref)

@@ -137,8 +137,28 @@ class ShiftLoss:
         self.points = np.concatenate(rows_X)  # (F, 3)
         self.probe_id = np.concatenate(rows_pid)
         self.t0 = float(t0_us if t0_us is not None else self.t_hq.min())
+        self.motion_px, self.track_noise_px = self._motion()
         self.set_transform(T)
         self.evaluations = 0
+
+    def _motion(self):
+        """Per feature: the displacement along a straight-line fit to its track over the window
+        (px) and the RMS of the track around that line (px, the tracking noise)."""
+        t = np.where(np.isfinite(self.rel_stamps), self.rel_stamps, np.nan)
+        valid = np.isfinite(t) & np.all(np.isfinite(self.tracks), axis=2)
+        n = valid.sum(axis=1)
+        tm = np.nansum(np.where(valid, t, 0), axis=1) / np.maximum(n, 1)
+        dt = np.where(valid, t - tm[:, None], 0.0)
+        p = np.where(valid[..., None], self.tracks, 0.0)
+        pm = p.sum(axis=1) / np.maximum(n, 1)[:, None]
+        dp = np.where(valid[..., None], p - pm[:, None, :], 0.0)
+        sxx = (dt ** 2).sum(axis=1)
+        slope = (dt[..., None] * dp).sum(axis=1) / np.maximum(sxx, 1e-9)[:, None]  # px/us
+        resid = np.where(valid[..., None], dp - slope[:, None, :] * dt[..., None], 0.0)
+        noise = np.sqrt((resid ** 2).sum(axis=(1, 2)) / np.maximum(2 * (n - 2), 1))
+        span = np.where(valid, t, np.nan)
+        duration = np.nanmax(span, axis=1) - np.nanmin(span, axis=1)
+        return np.linalg.norm(slope, axis=1) * duration, noise
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
@@ -253,9 +273,9 @@ def _information(loss: ShiftLoss, a: float, b: float, *, moving_px: float):
         return float("inf"), 0, float("nan")
     sigma = 1.4826 * np.median(np.abs(r[finite])) + 1e-3  # per coordinate, robust
     inl = finite & (rn < 3 * sigma * np.sqrt(2))
-    # a feature "moves" when its track spans more than moving_px over the window
-    span = np.nanmax(loss.tracks, axis=1) - np.nanmin(loss.tracks, axis=1)
-    moving = inl & (np.linalg.norm(span, axis=1) > moving_px)
+    # a feature "moves" when its straight-line displacement over the window exceeds moving_px and
+    # is clearly above its own tracking noise (noise alone never looks like motion)
+    moving = inl & (loss.motion_px > np.maximum(moving_px, 6 * loss.track_noise_px))
     info = float(np.sum(vel[moving] ** 2)) / sigma ** 2
     std = 1.0 / np.sqrt(info) if info > 0 else float("inf")
     return std, int(moving.sum()), float(sigma)
@@ -298,7 +318,7 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
     loss = ShiftLoss(probes, T_init, K_lq_color, scale_px=scale_px, t0_us=t0_us)
     b = 0.0 if drift_ppm is None else drift_ppm * 1e-6
     n_probes = len(set(loss.probe_id.tolist()))
-    log.info("shift search: %d probes, %d features tracked through their windows", n_probes, len(loss))
+    log.debug("shift search: %d probes, %d features tracked through their windows", n_probes, len(loss))
 
     if declared_shift_us is not None:
         a = float(declared_shift_us)
@@ -329,20 +349,21 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
     used_model = model if drift_ppm is None else "constant+declared drift"
     est = ShiftEstimate(a, std, True, used_model, b * 1e6, int(loss.t0), grid, vals, loss.T, n_probes, len(loss),
                         n_moving, "", loss.evaluations, segments, (int(lo), int(hi)))
-    log.info("shift %.0f us +- %.0f us from %d moving of %d features (%d loss evaluations)", a, std, n_moving,
+    log.debug("shift %.0f us +- %.0f us from %d moving of %d features (%d loss evaluations)", a, std, n_moving,
              len(loss), loss.evaluations)
-    if n_moving < min_moving or not std <= max_std_us:
-        est.observable = False
-        est.reason = (f"only {n_moving} features move (need {min_moving}); the shift's standard deviation would be "
-                      f"{std:.0f} us (limit {max_std_us:.0f} us): the scene is static or nearly so")
-        err = UnobservableError(f"time shift unobservable: {est.reason}")
-        err.estimate = est
-        raise err
-    if edge:
+    static = n_moving < min_moving
+    if edge and not static:
         est.observable = False
         est.reason = (f"the best shift {a / 1000:.1f} ms lies on the edge of the search range "
                       f"[{lo / 1000:.0f}, {hi / 1000:.0f}] ms; the true shift may lie outside it")
         err = ShiftRangeError(f"{est.reason}: widen --shift-range-ms")
+        err.estimate = est
+        raise err
+    if static or not std <= max_std_us:
+        est.observable = False
+        est.reason = (f"only {n_moving} features move (need {min_moving}); the shift's standard deviation would be "
+                      f"{std:.0f} us (limit {max_std_us:.0f} us): the scene is static or nearly so")
+        err = UnobservableError(f"time shift unobservable: {est.reason}")
         err.estimate = est
         raise err
     return est

@@ -25,9 +25,9 @@ For every source pixel ``p`` with depth ``d``:
    half way (the edge is assumed at the midpoint) and holds its depth along that axis: nothing is
    extrapolated past the last sample of a surface, and no value is ever a mix of two surfaces.
 5. Z-buffer (``np.maximum.at`` on an int64 key): the nearest surface wins (to ~2 % of depth);
-   among splats of that surface a fixed priority of the splat's offset decides, so the choice
-   does not depend on the noisy values (taking the nearest of several noisy values of one
-   surface would bias the reference towards the camera).
+   among splats of that surface the point closest to the pixel wins (shortest extrapolation),
+   so the choice does not depend on the noisy values (taking the nearest of several noisy values
+   of one surface would bias the reference towards the camera).
 
 Output: ``float32`` metres ``(H_dst, W_dst)``, NaN where no source surface lands (occlusion
 shadows, outside the source's view, edges). Only the source rows/columns that can reach the
@@ -196,6 +196,25 @@ class DepthWarper:
                 lim *= rel
                 np.less_equal(dd, lim, out=c, casting="unsafe")
             cxp[1:N] *= ws["not_row_end"]
+            # ... and the step must continue the slope of a neighbouring step (inverse depth is
+            # linear along a plane): a mixed pixel close to one surface passes the jump test above
+            # but breaks the slope on both sides, so it loses its links and is dropped
+            tau = f32(self.edge_rel / 3)
+            for c, e in ((cxp, 1), (cyp, W)):
+                n = N - e
+                step = np.subtract(w[e:], w[:-e], out=t1[:n])
+                m = n - e
+                dd = np.subtract(step[e:], step[:-e], out=t2[:m])  # pair (link L, link L + e)
+                np.abs(dd, out=dd)
+                pair = ws["pair"][:N]
+                pair[:e] = False
+                pair[N - e:] = False
+                np.less_equal(dd, np.multiply(w[e:e + m], tau), out=pair[e:e + m])
+                if e == 1:  # pairs that touch a link across a row end do not count
+                    pair[1:N - 1] &= ws["row_link"][:-1]
+                    pair[1:N - 1] &= ws["row_link"][1:]
+                support = pair[0:n] | pair[e:N]  # link L = k + e (pixels k, k + e) has a pair on either side
+                c[e:N] *= support
         # cxp[k] links pixels k-1 and k; cyp[k] links k-W and k
         cl, cr = cxp[0:N], cxp[1:N + 1]
         cu, cd = cyp[0:N], cyp[W:N + W]
@@ -285,15 +304,15 @@ class DepthWarper:
 
         # Z-buffer key (int64, the maximum wins): its high int32 holds the top bits of w's float32
         # pattern (positive floats sort like their bit patterns), so the nearest surface wins to
-        # ~2 % of w, then a fixed priority of the splat's offset; its low int32 holds w itself.
-        # Among splats of one surface the choice thus depends on geometry only, not on the noisy
-        # values: keeping the largest of several noisy w would bias the reference towards the camera.
+        # ~2 % of w, then the splat's closeness to the pixel (bilinear weight, 8 bits); its low int32
+        # holds w itself. Among splats of one surface the choice thus depends on geometry only, not
+        # on the noisy values (keeping the largest of several noisy w would bias the reference towards
+        # the camera), and the nearest point's plane is used (the shortest extrapolation).
         buf = ws["zkey"]
         buf.fill(0)
         lo_half, hi_half = (0, 1) if sys.byteorder == "little" else (1, 0)
-        prio = _priorities(self._offsets)
 
-        def key(val, p, k_=None, c=None):
+        def key(val, wt, k_=None, c=None, wq=None):  # wt: closeness of the splat to the pixel, [0, 1]
             bits = val.view(np.int32)
             k_ = np.empty(bits.size, np.int64) if k_ is None else k_
             halves = k_.view(np.int32).reshape(-1, 2)
@@ -301,7 +320,9 @@ class DepthWarper:
             c = np.empty(bits.size, np.int32) if c is None else c
             np.right_shift(bits, 18, out=c)
             c <<= 8
-            c |= p
+            wq = np.empty(bits.size, f32) if wq is None else wq
+            np.multiply(wt, f32(255.0), out=wq)
+            c |= wq.astype(np.int32)
             halves[:, hi_half] = c
             return k_
 
@@ -310,20 +331,28 @@ class DepthWarper:
         if n:
             sc = ws["splat"]
             fru, frv, ibase, sgu, sgv, _ = splat_setup(sel, sc)
-            base_w, val, idx, kk, cc = (sc[k][:n] for k in ("base_w", "val", "idx", "key", "c"))
+            base_w, val, idx, kk, cc, wq = (sc[k][:n] for k in ("base_w", "val", "idx", "key", "c", "wq"))
             np.take(w, sel, out=base_w)
             np.multiply(sgu, fru, out=val)
             base_w -= val
             np.multiply(sgv, frv, out=val)
             base_w -= val  # w extrapolated on the local plane to the pixel (fu, fv)
+            wt, wu0, wv0 = sc["wt"][:n], sc["wu0"][:n], sc["wv0"][:n]
+            np.subtract(f32(1), fru, out=wu0)
+            np.subtract(f32(1), frv, out=wv0)
+            h = f32(self.k / 2)
             for a_, b_ in self._offsets:
                 off = b_ * Wp + a_
                 np.multiply(sgu, f32(a_), out=val)
                 val += base_w
                 if b_:
                     val += sgv * f32(b_) if b_ != 1 else sgv
+                if self.k == 2:  # bilinear weights
+                    np.multiply(fru if a_ else wu0, frv if b_ else wv0, out=wt)
+                else:
+                    wt = np.maximum(h - np.abs(f32(a_) - fru), 0) * np.maximum(h - np.abs(f32(b_) - frv), 0) / (h * h)
                 np.add(ibase, off, out=idx)
-                np.maximum.at(buf, idx, key(val, prio[(a_, b_)], kk, cc))
+                np.maximum.at(buf, idx, key(val, wt, kk, cc, wq))
 
         # The rest (edge points, and interior points of strongly compressed surfaces), few: a
         # pixel is covered when it lies within one grid step towards a continuous neighbour, or
@@ -355,8 +384,9 @@ class DepthWarper:
             np.maximum(val, f32(1e-12), out=val)
             off = (B * Wp + A).astype(np.intp)
             idx = np.where(take, eidx + off, trash).ravel()
-            p = np.array([prio[o] for o in self._offsets], np.int32)[:, None] * np.ones_like(take, np.int32)
-            np.maximum.at(buf, idx, key(val.ravel(), p.ravel()))
+            h = f32(self.k / 2)
+            wt = np.maximum(h - np.abs(cu_), 0) * np.maximum(h - np.abs(cv_), 0) / (h * h)
+            np.maximum.at(buf, idx, key(val.ravel(), wt.ravel()))
         zb = buf[:trash].reshape(self._Hp, Wp)[self.r:-self.r, self.r:-self.r]
         wv = zb.view(np.int32).reshape(zb.shape[0], zb.shape[1], 2)[:, :, lo_half].view(f32)
         out = np.full(wv.shape, np.nan, f32)
@@ -375,6 +405,7 @@ class DepthWarper:
             not_row_end = np.ones((H, W), f32)
             not_row_end[:, -1] = 0
             ws = {"cxp": np.zeros(N + 1, f32), "cyp": np.zeros(N + W, f32), "gxp": np.zeros(N + 1, f32),
+                  "pair": np.zeros(N, bool), "row_link": not_row_end.ravel()[:-1] > 0,
                   "gyp": np.zeros(N + W, f32), "not_row_end": not_row_end.ravel()[:-1].copy(),
                   "zkey": np.zeros(self._Hp * self._Wp + 2 * self._Wp + 2 * self.k + 2, np.int64),
                   "splat": {k: np.empty(N, t) for k, t in (
@@ -396,16 +427,10 @@ def _offsets(k: int) -> list[tuple[int, int]]:
     return [(a, b) for b in r for a in r]
 
 
-def _priorities(offsets) -> dict:
-    """Fixed z-buffer priority of each splat offset (ties inside one surface; central offsets first)."""
-    order = sorted(offsets, key=lambda o: (abs(o[0] - 0.5) + abs(o[1] - 0.5), o))
-    return {o: len(offsets) - i for i, o in enumerate(order)}
-
-
-def _zkey(w: float, priority: int) -> tuple[int, int, int]:
+def _zkey(w: float, weight: float) -> tuple[int, int, int]:
     """The z-buffer order of one splat, as the vectorised warp's int64 key orders it."""
     bits = int(np.float32(w).view(np.int32))
-    return (bits >> 18, priority, bits)
+    return (bits >> 18, int(np.float32(weight) * np.float32(255.0)), bits)
 
 
 def _distort(x: np.ndarray, y: np.ndarray, k: np.ndarray):
@@ -462,7 +487,7 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
         footprint = max(2, int(math.ceil(ratio * 1.15)))
     k = footprint
     offsets = _offsets(k)
-    prio = _priorities(offsets)
+    h = k / 2
     u = np.full((H, W), np.nan)
     v = np.full((H, W), np.nan)
     w = np.zeros((H, W))
@@ -476,11 +501,23 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
             uv = K_dst.project(X[None])[0]
             u[i, j], v[i, j], w[i, j] = uv[0], uv[1], 1.0 / X[2]
 
-    def cont(i0, j0, i1, j1):  # one surface: both valid, depth jump at most edge_rel of the nearer
-        if not (0 <= i1 < H and 0 <= j1 < W):
+    def jump_ok(i0, j0, i1, j1):  # both valid, depth jump at most edge_rel of the nearer
+        if not (0 <= i0 < H and 0 <= j0 < W and 0 <= i1 < H and 0 <= j1 < W):
             return False
         a, b = d[i0, j0], d[i1, j1]
         return bool(w[i0, j0] > 0 and w[i1, j1] > 0 and abs(b - a) <= edge_rel * min(a, b))
+
+    def cont(i0, j0, i1, j1):  # ... and the step continues the slope of the step before or after it
+        if not jump_ok(i0, j0, i1, j1):
+            return False
+        di, dj = i1 - i0, j1 - j0
+        step = w[i1, j1] - w[i0, j0]
+        for (ia, ja), (ib, jb), (ic, jc) in (((i0 - di, j0 - dj), (i0, j0), (i0, j0)),
+                                            ((i1, j1), (i1 + di, j1 + dj), (i1, j1))):
+            if 0 <= ia < H and 0 <= ja < W and 0 <= ib < H and 0 <= jb < W and w[ia, ja] > 0 and w[ib, jb] > 0:
+                if abs(step - (w[ib, jb] - w[ia, ja])) <= edge_rel / 3 * w[ic, jc]:
+                    return True
+        return False
 
     zbuf = np.zeros((Hd, Wd))
     zkey = {}
@@ -522,7 +559,8 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
                             val += g[2] * delta[ax]
                     tu, tv = fu + a, fv + b
                     if inside and 0 <= tu < Wd and 0 <= tv < Hd:
-                        kv = _zkey(max(val, 1e-12), prio[(a, b)])
+                        wt = max(h - abs(c[0]), 0) * max(h - abs(c[1]), 0) / (h * h)
+                        kv = _zkey(max(val, 1e-12), wt)
                         if (tv, tu) not in zkey or kv > zkey[(tv, tu)]:
                             zkey[(tv, tu)] = kv
                             zbuf[tv, tu] = val

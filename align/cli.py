@@ -1,0 +1,80 @@
+"""``depthbench align SESSION --out ALIGNED``: a thin parser over :func:`align.pipeline.align_session`."""
+from __future__ import annotations
+
+import argparse
+
+from align.features import FEATURES
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "align", help="align HQ and LQ streams in time and space; write an aligned dataset and its report",
+        description=(
+            "Find the time shift between the HQ and LQ clocks (seed report eq. 28-31: a coarse scan then a "
+            "bracketing refinement of the spatial feature loss, sub-millisecond), fit the extrinsic T_lq_hq from "
+            "colour features (PnP+RANSAC, then a robust joint least-squares fit), warp the HQ depth onto the LQ "
+            "image (z-buffer, both cameras' distortion), and write the aligned dataset (data_manifests/aligned.md) "
+            "with report.md/report.html. Multi-view sessions (role 'view') give one dataset per view plus rig.json."),
+        epilog="Example: depthbench align sim/ --out aligned/ --shift-range-ms 60 --features sift")
+    p.add_argument("session", metavar="SESSION", help="session folder (capture format)")
+    p.add_argument("--out", required=True, metavar="ALIGNED", help="aligned dataset folder to create")
+    p.add_argument("--force", action="store_true", help="replace ALIGNED if it exists")
+    g = p.add_argument_group("time")
+    g.add_argument("--shift-range-ms", type=float, default=60.0, metavar="MS",
+                   help="search the shift in [-MS, +MS] (default: %(default)g)")
+    g.add_argument("--shift-step-ms", type=float, default=2.0, metavar="MS",
+                   help="coarse scan step before the bracketing refinement (default: %(default)g)")
+    g.add_argument("--time-model", choices=("constant", "linear"), default="constant",
+                   help="constant shift, or Delta(t) = a + b t with clock drift (default: %(default)s); "
+                        "clock facts declared in session.json are used as given")
+    g.add_argument("--association", choices=("nearest", "greedy"), default="nearest",
+                   help="nearest: eq. 28 per HQ frame; greedy: TUM associate.py one-to-one (default: %(default)s)")
+    g.add_argument("--max-dt-ms", type=float, default=None, metavar="MS",
+                   help="drop pairs whose time difference after the shift exceeds MS (default: half the LQ period)")
+    g.add_argument("--allow-unobservable", action="store_true",
+                   help="when the shift cannot be measured (static scene), write the dataset anyway with the declared "
+                        "shift or 0, flagged as unobservable, instead of stopping with an error")
+    g.add_argument("--no-dejitter", action="store_true",
+                   help="use the raw host stamps (default: regularised against the frame counters)")
+    g = p.add_argument_group("space")
+    g.add_argument("--features", choices=FEATURES, default="sift", help="colour feature detector (default: %(default)s)")
+    g.add_argument("--max-features", type=int, default=1500, metavar="N", help="keypoints per image (default: %(default)s)")
+    g.add_argument("--probes", type=int, default=24, metavar="N",
+                   help="HQ frames, spread over the session, whose features fit the shift and T_ex (default: %(default)s)")
+    g.add_argument("--residual-k", type=float, default=6.0, metavar="K",
+                   help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
+    g = p.add_argument_group("output")
+    g.add_argument("--no-truth", action="store_true", help="do not attach the simulator's truth depth (simulated sessions)")
+    g.add_argument("--no-report", action="store_true", help="skip report.md and the figures")
+    g.add_argument("--workers", type=int, default=2, metavar="N", help="threads for feature work (default: %(default)s)")
+    g.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from align.errors import AlignError
+    from align.pipeline import align_session
+
+    if args.workers < 1:
+        raise AlignError(f"--workers must be at least 1, got {args.workers}")
+    if args.max_features < 50:
+        raise AlignError(f"--max-features must be at least 50, got {args.max_features}")
+    r = align_session(
+        args.session, args.out, force=args.force, shift_range_ms=args.shift_range_ms, shift_step_ms=args.shift_step_ms,
+        features=args.features, max_features=args.max_features, probes=args.probes, association=args.association,
+        max_dt_ms=args.max_dt_ms, residual_k=args.residual_k, time_model=args.time_model, workers=args.workers,
+        on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
+        report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter)
+    sh = r.shift
+    state = "" if sh.observable else "  (UNOBSERVABLE: placeholder, see the report)"
+    print(f"aligned dataset: {r.out}")
+    print(f"  time shift: {sh.time_shift_us / 1000:+.3f} ms +- {sh.std_us / 1000:.3f} ms ({sh.model}){state}")
+    print(f"  T_lq_hq: rotation {r.T_lq_hq.rotation_angle_deg():.3f} deg, translation "
+          f"{1000 * float((r.T_lq_hq.t ** 2).sum() ** 0.5):.1f} mm; feature RMS {r.fit.rms_px:.2f} px")
+    if r.rig is not None:
+        print(f"  rig: {len(r.views)} views in the frame of {r.rig.reference} (rig.json)")
+    dropped = r.dropped if isinstance(r.dropped, dict) else {}
+    print(f"  pairs kept: {r.kept}" + (f"; dropped: {dropped}" if dropped else ""))
+    if r.report is not None:
+        print(f"  report: {r.report}")
+    return 0

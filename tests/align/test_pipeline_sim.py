@@ -1,0 +1,202 @@
+"""align_session and `depthbench align` on simulated sessions, checked against truth/.
+
+The fit never reads truth/; these tests do, afterwards.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from align.dataset import AlignedDataset
+from align.errors import AssociationError, FeatureError, ShiftRangeError, UnobservableError
+from align.pipeline import align_session
+from capture.session import open_session
+from capture.truth import read_truth
+from tests.align.conftest import refresh_checksums
+from tests.conftest import assert_one_line_error
+
+
+@pytest.fixture(scope="module")
+def aligned55(sim_plus55, tmp_path_factory):
+    out = tmp_path_factory.mktemp("aligned") / "plus55"
+    res = align_session(sim_plus55, out, progress=False, probes=16)
+    return res, out
+
+
+def test_time_shift_within_1ms_at_plus_55(sim_plus55, aligned55):
+    res, out = aligned55
+    truth = read_truth(sim_plus55)
+    assert abs(res.shift.time_shift_us - truth.time_shift_us) < 1000, (res.shift.time_shift_us, truth.time_shift_us)
+    assert res.observable and res.shift.std_us < 1000
+    meta = json.loads((out / "aligned.json").read_text())
+    assert meta["time_shift_us"] == int(round(res.shift.time_shift_us))
+    assert meta["time_model"]["observable"] is True
+
+
+def test_extrinsics_within_2mm_and_0p1deg(sim_plus55, aligned55):
+    res, out = aligned55
+    dt, dr = AlignedDataset(out).T_lq_hq.error_to(read_truth(sim_plus55).T_lq_hq)
+    assert dt < 0.002 and dr < 0.1, (dt, dr)
+
+
+def test_dataset_layers_pairs_and_report(sim_plus55, aligned55):
+    res, out = aligned55
+    ds = AlignedDataset(out)
+    assert len(ds) == res.kept > 40
+    assert ds.meta["effects"] == [] and ds.meta["lq_sensor"] == "lq" and ds.meta["hq_sensor"] == "hq"
+    lines = (out / "pairs.csv").read_text().splitlines()
+    sess = open_session(sim_plus55)
+    assert len(lines) - 1 == sess.timestamps_us("hq").size  # every HQ frame has a row, kept or not
+    assert lines[0].startswith("hq_frame,lq_frame,t_hq_us,t_lq_us,shift_us,dt_us")
+    for name in ("report.md", "report.html", "figures/loss_vs_shift.png", "figures/residuals.png",
+                 "figures/example.png"):
+        assert (out / name).is_file(), name
+    f = ds.frame(len(ds) // 2)
+    truth = read_truth(sim_plus55)
+    np.testing.assert_allclose(f.truth, truth.depth("lq", int(ds.rows[len(ds) // 2]["lq_frame"])), atol=1e-4,
+                               equal_nan=True)
+    assert f.roi is not None and f.roi.any() and f.lq_color is not None
+
+
+def _hq_noise_on_lq_grid(sess, truth, hq_frame):
+    """The HQ sensor's own noise as it lands on the LQ pixels: its depth and its noise-free depth, both
+    resampled onto the LQ image with the *true* geometry; per-pixel difference (NaN where none)."""
+    from align.warp import DepthWarper
+
+    W = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), truth.T_lq_hq)
+    return W(sess.read_depth("hq", hq_frame)) - W(truth.depth("hq", hq_frame))
+
+
+def test_warped_reference_against_lq_truth(sim_plus55, aligned55):
+    """Static pixels: median |warped HQ - LQ truth| <= HQ noise + 1 mm; no value between two surfaces."""
+    res, out = aligned55
+    ds, truth, sess = AlignedDataset(out), read_truth(sim_plus55), open_session(sim_plus55)
+    lq_frames = sess.frames("lq", "depth")["frame_number"].tolist()
+    for i in (5, len(ds) // 2, len(ds) - 5):
+        f = ds.frame(i)
+        lqf, hqf = int(ds.rows[i]["lq_frame"]), int(ds.rows[i]["hq_frame"])
+        k = lq_frames.index(lqf)
+        # static pixels: the truth does not change over the neighbouring LQ frames (moving content is
+        # seen up to half a frame apart by the two sensors: that is the pair's dt, not an alignment error)
+        nb = [truth.depth("lq", lq_frames[j]) for j in (k - 1, k + 1) if 0 <= j < len(lq_frames)]
+        static = np.all([np.abs(n - f.truth) < 1e-3 for n in nb], axis=0)
+        ok = np.isfinite(f.reference) & np.isfinite(f.truth)
+        err = np.abs(f.reference - f.truth)
+        hq_noise = np.abs(_hq_noise_on_lq_grid(sess, truth, hqf))
+        both = ok & static & np.isfinite(hq_noise)
+        assert ok.mean() > 0.5 and both.sum() > 0.3 * ok.size
+        # the alignment (time shift, T_ex, warp) adds at most 1 mm to the HQ sensor's own noise
+        assert np.median(err[both]) <= np.median(hq_noise[both]) + 0.001, (i, np.median(err[both]),
+                                                                          np.median(hq_noise[both]))
+        # no bleeding: every static reference value matches a truth depth of its 3x3 neighbourhood
+        pad = np.pad(f.truth, 1, constant_values=np.nan)
+        H, W = f.truth.shape
+        best = np.full((H, W), np.inf)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                best = np.fmin(best, np.abs(f.reference - pad[1 + dy:1 + dy + H, 1 + dx:1 + dx + W]))
+        tol = 0.02 + 0.01 * f.truth  # HQ noise tails and mixed-pixel remnants, far below a surface gap
+        bad = ok & static & (best > tol)
+        assert bad.mean() < 0.001, bad.sum()
+
+
+def test_static_scene_is_reported_unobservable(sim_static, tmp_path, cli):
+    with pytest.raises(UnobservableError, match="unobservable"):
+        align_session(sim_static, tmp_path / "a", progress=False, probes=8)
+    assert not (tmp_path / "a").exists()
+    r = cli("align", str(sim_static), "--out", str(tmp_path / "b"), "--probes", "8", "--no-progress")
+    assert_one_line_error(r, "time shift unobservable", "static")
+    r = cli("align", str(sim_static), "--out", str(tmp_path / "c"), "--probes", "8", "--no-progress",
+            "--allow-unobservable", "--no-report")
+    assert r.returncode == 0, r.stderr
+    assert "UNOBSERVABLE" in r.stdout
+    meta = json.loads((tmp_path / "c" / "aligned.json").read_text())
+    assert meta["time_model"]["observable"] is False and meta["time_model"]["reason"]
+    # the shift is unobservable, the extrinsics are not
+    dt, dr = AlignedDataset(tmp_path / "c").T_lq_hq.error_to(read_truth(sim_static).T_lq_hq)
+    assert dt < 0.003 and dr < 0.15
+
+
+def test_shift_range_that_cannot_contain_the_answer(sim_plus55, tmp_path, cli):
+    with pytest.raises(ShiftRangeError, match="edge of the search range"):
+        align_session(sim_plus55, tmp_path / "a", progress=False, probes=8, shift_range_ms=30)
+    r = cli("align", str(sim_plus55), "--out", str(tmp_path / "b"), "--shift-range-ms", "30", "--probes", "8",
+            "--no-progress")
+    assert_one_line_error(r, "--shift-range-ms")
+    assert not (tmp_path / "b").exists()
+
+
+def _copy(src, dst):
+    shutil.copytree(src, dst)
+    return dst
+
+
+def test_no_colour_stream_is_a_one_line_error(sim_plus55, tmp_path, cli):
+    s = _copy(sim_plus55, tmp_path / "nocolor")
+    m = json.loads((s / "session.json").read_text())
+    del m["sensors"]["hq"]["streams"]["color"]
+    del m["sensors"]["hq"]["T_depth_color"]
+    (s / "session.json").write_text(json.dumps(m))
+    lines = (s / "hq" / "frames.csv").read_text().splitlines()
+    (s / "hq" / "frames.csv").write_text("\n".join(l for l in lines if not l.startswith("color,")) + "\n")
+    refresh_checksums(s)
+    with pytest.raises(FeatureError, match="no colour stream"):
+        align_session(s, tmp_path / "a", progress=False)
+    r = cli("align", str(s), "--out", str(tmp_path / "b"))
+    assert_one_line_error(r, "'hq' has no colour stream")
+
+
+def test_textureless_colour_gives_too_few_matches(sim_plus55, tmp_path):
+    import cv2
+
+    from depthbench.fsutil import sha256_bytes
+
+    s = _copy(sim_plus55, tmp_path / "flat")
+    table = s / "lq" / "frames.csv"
+    rows = table.read_text().splitlines()
+    out = [rows[0]]
+    for line in rows[1:]:
+        f = line.split(",")
+        if f[0] == "color":
+            img = cv2.imread(str(s / f[4]))
+            ok, buf = cv2.imencode(".png", np.full_like(img, 128))
+            (s / f[4]).write_bytes(buf.tobytes())
+            f[5] = sha256_bytes(buf.tobytes())
+        out.append(",".join(f))
+    table.write_text("\n".join(out) + "\n")
+    refresh_checksums(s)
+    with pytest.raises(FeatureError, match="colour feature matches"):
+        align_session(s, tmp_path / "a", progress=False, probes=6)
+
+
+def test_non_overlapping_time_ranges(sim_plus55, tmp_path, cli):
+    s = _copy(sim_plus55, tmp_path / "late")
+    table = s / "lq" / "frames.csv"
+    rows = table.read_text().splitlines()
+    out = [rows[0]]
+    for line in rows[1:]:
+        f = line.split(",")
+        f[3] = str(int(f[3]) + 60_000_000)  # LQ host clock a minute later
+        out.append(",".join(f))
+    table.write_text("\n".join(out) + "\n")
+    refresh_checksums(s)
+    with pytest.raises(AssociationError, match="do not overlap"):
+        align_session(s, tmp_path / "a", progress=False)
+    r = cli("align", str(s), "--out", str(tmp_path / "b"))
+    assert_one_line_error(r, "do not overlap")
+
+
+def test_existing_output_is_not_overwritten(sim_plus55, tmp_path, cli):
+    out = tmp_path / "exists"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    r = cli("align", str(sim_plus55), "--out", str(out))
+    assert_one_line_error(r, "exists", "--force")
+    assert (out / "keep.txt").read_text() == "mine"
+    r = cli("align", "/nonexistent/session", "--out", str(tmp_path / "x"))
+    assert_one_line_error(r, "/nonexistent/session")
+    r = cli("align", "--help")
+    assert r.returncode == 0 and "--shift-range-ms" in r.stdout and "--association" in r.stdout

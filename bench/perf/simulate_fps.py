@@ -1,6 +1,6 @@
 """Simulator throughput: frames of scene time per second for each rig, and where the time goes.
 
-Run:  .venv/bin/python bench/perf/simulate_fps.py [--seconds 3] [--scene people] [--workers N]
+Run:  .venv/bin/python bench/perf/simulate_fps.py [--seconds 3] [--scene people] [--workers N] [--repeat 3]
 
 For each rig at the default resolutions (lq-hq: 640x480 stereo + 512x424 ToF + 960x540 colour),
 it simulates ``--seconds`` of scene time into a temporary folder and prints:
@@ -15,7 +15,9 @@ it simulates ``--seconds`` of scene time into a temporary folder and prints:
   noise models), ``encode`` (PNG/JPEG), and the main process's ``write`` (files, index rows).
 
 The reference in the same run is the straightforward renderer on ``lq-hq``: one process,
-every pixel cast every frame (no still layer), printed first; the ratios compare against it.
+every pixel cast every frame (no still layer), encoding after rendering, printed first; the
+ratios compare against it. The default for ``lq-hq`` (one process on 2 cores, encoding in a
+thread while the next frame renders) is also compared with 2 worker processes.
 The machine is shared while the suite is developed, so the load average is printed too.
 """
 from __future__ import annotations
@@ -40,6 +42,14 @@ def _cpu_seconds() -> float:
 
 
 def _run(out: Path, rig: str, args, *, workers: int | None) -> dict:
+    """Best of ``args.repeat`` runs (highest wall rate; the machine may be shared)."""
+    runs = [_run_once(out, rig, args, workers=workers) for _ in range(args.repeat)]
+    best = max(runs, key=lambda m: m["fps"])
+    best["cpu_per_frame_ms"] = min(m["cpu_per_frame_ms"] for m in runs)
+    return best
+
+
+def _run_once(out: Path, rig: str, args, *, workers: int | None) -> dict:
     cpu0 = _cpu_seconds()
     r = simulate(out, rig=rig, scene=args.scene, seconds=args.seconds, seed=1, force=True, progress=False,
                  workers=workers)
@@ -58,12 +68,30 @@ def _print(label: str, m: dict, ref: dict | None, cores: int) -> None:
           f"-> {cpu_fps:5.1f} frames/s on {cores} idle cores | stage ms/frame: {stages}{ratio}")
 
 
+def _reference(out: Path, args) -> dict:
+    """lq-hq the straightforward way: every pixel cast every frame, encode after render, one process."""
+    original_renderer, original_loop = pipeline.Renderer, pipeline._render_in_process
+
+    def plain(plan, events):
+        worker = pipeline.FrameWorker(plan, nthreads=0)
+        for ev in events:
+            yield worker.render(ev)
+
+    pipeline.Renderer = lambda scene, **kw: Renderer(scene, **kw, reuse_still=False)
+    pipeline._render_in_process = plain
+    try:
+        return _run(out, "lq-hq", args, workers=1)
+    finally:
+        pipeline.Renderer, pipeline._render_in_process = original_renderer, original_loop
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seconds", type=float, default=3.0, help="scene time per rig (default %(default)s)")
     p.add_argument("--scene", default="people")
-    p.add_argument("--workers", type=int, default=None, help="rendering processes (default: one per core, max 4)")
+    p.add_argument("--workers", type=int, default=None, help="rendering processes (default: the simulator's)")
     p.add_argument("--rigs", nargs="*", default=list(RIGS))
+    p.add_argument("--repeat", type=int, default=1, help="runs per configuration; the best wall rate is shown")
     p.add_argument("--no-reference", action="store_true", help="skip the slow reference run")
     args = p.parse_args()
     cores = os.cpu_count() or 1
@@ -73,18 +101,13 @@ def main() -> None:
     try:
         ref = None
         if not args.no_reference:
-            original = pipeline.Renderer
-            pipeline.Renderer = lambda scene, **kw: Renderer(scene, **kw, reuse_still=False)
-            try:
-                ref = _run(tmp / "ref", "lq-hq", args, workers=1)
-            finally:
-                pipeline.Renderer = original
-            _print("reference: lq-hq, 1 process, full", ref, None, cores)
+            ref = _reference(tmp / "ref", args)
+            _print("reference: lq-hq, naive", ref, None, cores)
         for rig in args.rigs:
-            if rig == "lq-hq":
-                _print("lq-hq, 1 process", _run(tmp / "one", rig, args, workers=1), ref, cores)
             m = _run(tmp / rig, rig, args, workers=args.workers)
-            _print(f"{rig}, {args.workers or min(cores, 4)} processes", m, ref, cores)
+            _print(f"{rig}, {'default' if args.workers is None else args.workers} workers", m, ref, cores)
+            if rig == "lq-hq" and args.workers is None:
+                _print("lq-hq, 2 worker processes", _run(tmp / "two", rig, args, workers=2), ref, cores)
         print(f"(after the runs: load average {' '.join(f'{x:.2f}' for x in os.getloadavg())})")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

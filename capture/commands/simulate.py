@@ -44,7 +44,8 @@ def add_parser(sub) -> None:
     p.add_argument("--color-format", choices=("auto", "png", "jpeg"), default="auto",
                    help="encoding of the colour streams; auto: PNG for LQ, JPEG for HQ as Azure Kinect records (default: %(default)s)")
     p.add_argument("--workers", type=int, default=None,
-                   help="rendering processes (default: one per core, at most 4; output does not depend on it)")
+                   help="rendering processes (default: 1 on two cores, else one per core up to 4 for long runs; "
+                        "the output does not depend on it)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
     p.set_defaults(func=run)

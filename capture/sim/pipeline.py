@@ -9,6 +9,8 @@ scene-time order.
 from __future__ import annotations
 
 import time
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -85,6 +87,11 @@ class FrameWorker:
                      for s in plan.rig.sensors}
 
     def render(self, event: Event) -> EncodedFrame:
+        """Render and encode one frame."""
+        return self.encode(self.render_raw(event))
+
+    def render_raw(self, event: Event) -> tuple:
+        """Render one frame (the part that needs the renderer; the rest is :meth:`encode`)."""
         t_us, order, sid, i = event
         plan = self.plan
         spec = plan.rig.sensor(sid)
@@ -97,21 +104,32 @@ class FrameWorker:
                              timings=timings)
         for stage, s in self.renderer.stage_s.items():
             timings[stage] = s - before[stage]
+        return sid, i, fn, frame, timings
+
+    def encode(self, raw: tuple) -> EncodedFrame:
+        """Encode a rendered frame (thread-safe: OpenCV and hashlib release the GIL)."""
+        sid, i, fn, frame, timings = raw
+        spec = self.plan.rig.sensor(sid)
         with timings("encode"):
             files = {"depth": (encode_png16(depth_counts(frame.depth, spec.depth_unit_m)), "png"),
-                     "color": encode_color(frame.color, plan.color_encoding_of(sid)),
+                     "color": encode_color(frame.color, self.plan.color_encoding_of(sid)),
                      "truth": (encode_png16(depth_counts(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
             files = {k: (data, ext, sha256_bytes(data)) for k, (data, ext) in files.items()}
         return EncodedFrame(sid, i, fn, files, dict(timings))
 
 
+#: Frames rendered ahead of the one being encoded, in one process.
+_AHEAD = 2
+
+
 def render_frames(plan: Plan, events: list[Event], *, workers: int) -> Iterator[EncodedFrame]:
-    """Yield the encoded frames of ``events`` in order, rendered by ``workers`` processes
-    (1: in this process, Embree using every core)."""
+    """Yield the encoded frames of ``events`` in order.
+
+    ``workers`` <= 1: in this process; Embree casts on every core, and a thread encodes frame
+    n while frame n + 1 renders (the encoders and the numba kernels release the GIL).
+    ``workers`` > 1: that many worker processes (:mod:`capture.sim.worker`)."""
     if workers <= 1:
-        worker = FrameWorker(plan, nthreads=0)
-        for ev in events:
-            yield worker.render(ev)
+        yield from _render_in_process(plan, events)
         return
     from capture.sim.worker import WorkerPool
 
@@ -122,3 +140,20 @@ def render_frames(plan: Plan, events: list[Event], *, workers: int) -> Iterator[
         pool.kill()
         raise
     pool.close()
+
+
+def _render_in_process(plan: Plan, events: list[Event]) -> Iterator[EncodedFrame]:
+    worker = FrameWorker(plan, nthreads=0)
+    pending: deque[Future] = deque()
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="sim-encode") as pool:
+        try:
+            for ev in events:
+                pending.append(pool.submit(worker.encode, worker.render_raw(ev)))
+                while len(pending) > _AHEAD:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        except BaseException:
+            for f in pending:
+                f.cancel()
+            raise

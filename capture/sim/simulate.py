@@ -81,8 +81,8 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         static: freeze the scene (the time shift is then unobservable).
         scale: multiply every image size (e.g. 0.25 for tiny tests). lq_fps, hq_fps: frame rates.
         color_encoding: ``png`` or ``jpeg`` for every colour stream; ``auto``: PNG for LQ, JPEG for HQ.
-        workers: rendering processes (None: one per core, at most 4, for runs of 240+ frames;
-            1: render in this process; the bytes written do not depend on it).
+        workers: rendering processes (None: 1 on two cores, else one per core, at most 4, for
+            runs of 240+ frames; 1: render in this process; the bytes do not depend on it).
     Returns:
         :class:`SimulationResult`. Read the truth with :func:`capture.truth.read_truth`.
     """
@@ -165,9 +165,11 @@ def _events(plan: Plan) -> list[Event]:
 
 
 def _default_workers(n_events: int) -> int:
-    """Worker processes: one per core (at most 4) for runs long enough to pay for their start
-    (each costs about 2 s of CPU to import Open3D and friends): 240+ frames, 4 s of lq-hq."""
-    return 1 if n_events < 240 else max(1, min(os.cpu_count() or 1, 4))
+    """Rendering processes: on 2 cores one process does best (Embree casts on both cores and a
+    thread encodes while the next frame renders); with more cores, one process per core (at
+    most 4) for runs long enough (240+ frames) to pay for their start (~2 s CPU each)."""
+    cores = os.cpu_count() or 1
+    return 1 if cores <= 2 or n_events < 240 else min(cores, 4)
 
 
 def _render_all(plan: Plan, writer: SessionWriter, truth: TruthWriter, timings: Timings, *, progress: bool,

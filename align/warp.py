@@ -387,10 +387,11 @@ class DepthWarper:
             h = f32(self.k / 2)
             wt = np.maximum(h - np.abs(cu_), 0) * np.maximum(h - np.abs(cv_), 0) / (h * h)
             np.maximum.at(buf, idx, key(val.ravel(), wt.ravel()))
-        zb = buf[:trash].reshape(self._Hp, Wp)[self.r:-self.r, self.r:-self.r]
-        wv = zb.view(np.int32).reshape(zb.shape[0], zb.shape[1], 2)[:, :, lo_half].view(f32)
-        out = np.full(wv.shape, np.nan, f32)
-        np.divide(f32(1), wv, out=out, where=wv > 0)
+        wv = buf[:trash].view(np.int32)[lo_half::2].view(f32)  # the low halves: w (0 where nothing landed)
+        with np.errstate(divide="ignore"):
+            full = np.divide(f32(1), wv)
+        out = full.reshape(self._Hp, Wp)[self.r:-self.r, self.r:-self.r]
+        out[out == np.inf] = np.nan
         return out
 
     def _workspace(self) -> dict:

@@ -13,6 +13,17 @@ from capture.sim.effects import EFFECTS, parse_effects
 from capture.sim.errors import SimulationError
 from capture.sim.rigs import RIGS
 from capture.sim.scene import SCENES
-from capture.sim.simulate import SimulationResult, simulate
 
 __all__ = ["EFFECTS", "RIGS", "SCENES", "SimulationError", "SimulationResult", "parse_effects", "simulate"]
+
+
+def __getattr__(name: str):
+    # ``simulate`` pulls in Open3D (about a second to import): load it only when used, so that
+    # building the command-line parser (which needs RIGS, SCENES, EFFECTS) stays fast.
+    if name in ("simulate", "SimulationResult"):
+        import importlib
+
+        module = importlib.import_module("capture.sim.simulate")  # binds the submodule to the name...
+        globals().update(simulate=module.simulate, SimulationResult=module.SimulationResult)  # ...rebind it
+        return globals()[name]
+    raise AttributeError(f"module 'capture.sim' has no attribute {name!r}")

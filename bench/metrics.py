@@ -686,8 +686,11 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
     idx = vv * W + uu
     position = np.full(H * W, -1, np.int32)
     position[idx] = np.arange(idx.size, dtype=np.int32)
-    z = ref[vv, uu].astype(np.float64)
-    pts = np.stack([xn[vv, uu] * z, yn[vv, uu] * z, z], axis=1)
+    z = ref.ravel()[idx].astype(np.float64)
+    pts = np.empty((idx.size, 3))
+    np.multiply(xn.ravel()[idx], z, out=pts[:, 0])
+    np.multiply(yn.ravel()[idx], z, out=pts[:, 1])
+    pts[:, 2] = z
     N = idx.size
     if N == 0:
         return ReferencePlanes(R, idx, position, pts, np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 3)),
@@ -699,7 +702,7 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
         X = grid_points = G.embed_points(ref[crop], R[crop], xn[crop], yn[crop])
         fi = grid_index = G.flat_index(vv - crop[0].start, uu - crop[1].start)
         with np.errstate(divide="ignore", invalid="ignore"):
-            reach = np.where(z > r, r * sq[vv, uu] / (z - r), np.inf) * (1.0 + 1e-9) + 1e-12
+            reach = np.where(z > r, r * sq.ravel()[idx] / (z - r), np.inf) * (1.0 + 1e-9) + 1e-12
         beyond = _beyond_cap(intrinsics)
         fallback = reach >= beyond
         parts = _run(lambda v0, v1: _strip_sums(G, X, r * r, v0, v1), G.strips, threads)
@@ -710,7 +713,12 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
 
         def gather(k):
             a, b = cuts[k], cuts[k + 1]
-            sums[:, a:b] = parts[k][:, fi[a:b] - G.start(G.strips[k][0])]
+            v0, v1 = G.strips[k]
+            if b - a == (v1 - v0) * G.W:        # every pixel of the strip is a reference point: a plain copy
+                core = parts[k][:, :(v1 - v0) * G.Wp].reshape(10, v1 - v0, G.Wp)[:, :, G.pad:G.pad + G.W]
+                sums[:, a:b] = core.reshape(10, -1)
+            else:
+                sums[:, a:b] = parts[k][:, fi[a:b] - G.start(v0)]
 
         _run(gather, [(k,) for k in range(len(parts))], threads)
         del parts

@@ -225,6 +225,14 @@ def test_plane_fit_matches_brute_force(r):
         assert max(x[1] for x in bf.values()) > 25
 
 
+def test_plane_fit_full_frame_without_holes_matches_brute_force():
+    rng = np.random.default_rng(4)
+    ref = surface(K_SMALL)
+    pred = (ref + rng.normal(0, 0.004, ref.shape)).astype(np.float32)
+    ref = (ref + rng.normal(0, 0.0005, ref.shape)).astype(np.float32)
+    _compare(pred, ref, K_SMALL, None, 0.03)
+
+
 def test_plane_fit_close_points_use_the_kdtree_fallback_and_still_match():
     pred, ref, roi = noisy_pair(K_SMALL, base=0.25, bump=0.005, slant=(0.0005, 0.0003))
     # a 60 mm ball at 0.25 m spans ~20 pixels: beyond the grid's window cap

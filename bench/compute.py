@@ -7,6 +7,7 @@ chose (this one, a local process pool, a Dask worker) and returns plain rows; it
 from __future__ import annotations
 
 import logging
+import sys
 import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -59,6 +60,7 @@ class FrameTask:
     methods: tuple
     config: MetricConfig
     preview: bool = False
+    threads: int | None = None     # CPU threads this task may use (metrics, numba kernels); None: library defaults
 
 
 @dataclass
@@ -77,6 +79,23 @@ def _open(root: str, checksum: str) -> AlignedDataset:
         raise BenchError(f"{root}: dataset changed while the benchmark ran (checksum {ds.checksum[:12]}..., "
                          f"expected {checksum[:12]}...)")
     return ds
+
+
+def _limit_threads(threads: int | None) -> int:
+    """Cap the numba kernels of the methods at ``threads`` (this thread only); returns the metric threads.
+
+    With several worker processes on one machine each gets its share of the cores, so N workers do
+    not run N x cores threads.
+    """
+    if threads is None:
+        return 1
+    numba = sys.modules.get("numba")
+    if numba is not None:
+        try:
+            numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+        except (ValueError, RuntimeError):   # pragma: no cover - a numba without threading layer
+            pass
+    return max(1, threads)
 
 
 def _denoise(method: Denoiser, frame, K, task: FrameTask) -> np.ndarray | None:
@@ -115,6 +134,7 @@ def compute_frame(task: FrameTask) -> FrameOutput:
     Returns a :class:`FrameOutput`; raises :class:`BenchError` (or the method's own error) naming
     the dataset and frame.
     """
+    threads = _limit_threads(task.threads)
     ds = _open(task.dataset_root, task.dataset_checksum)
     fr = ds.frame(task.frame)
     K = ds.lq_intrinsics
@@ -126,7 +146,8 @@ def compute_frame(task: FrameTask) -> FrameOutput:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         planes = {name: fit_reference_planes(ref, K, roi=fr.roi, radius_m=cfg.radius_m,
-                                             min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio)
+                                             min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio,
+                                             threads=threads)
                   for name, ref in refs.items()}
         hq_empty = planes["hq"].index.size == 0
         for method in task.methods:
@@ -147,7 +168,8 @@ def compute_frame(task: FrameTask) -> FrameOutput:
                     metrics["n_reference"] = float(planes[name].index.size)
                     bins = []
                 else:
-                    metrics, bins = frame_metrics(pred, ref, K, roi=fr.roi, config=cfg, planes=planes[name])
+                    metrics, bins = frame_metrics(pred, ref, K, roi=fr.roi, config=cfg, planes=planes[name],
+                                                  threads=threads)
                 rows += _rows(method, task, name, metrics, bins)
             if pred is None:
                 pred = np.full(fr.lq_depth.shape, np.nan, np.float32)

@@ -846,7 +846,7 @@ def plane_fit_rmse(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *,
 # --------------------------------------------------------------------------------- one frame
 def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.ndarray | None = None,
                   config: MetricConfig = MetricConfig(), planes: ReferencePlanes | None = None,
-                  plane_fit_method: str = "auto") -> tuple[dict[str, float], list[dict[str, float]]]:
+                  plane_fit_method: str = "auto", threads: int = 1) -> tuple[dict[str, float], list[dict[str, float]]]:
     """Every metric of one frame against one reference.
 
     Args:
@@ -856,6 +856,7 @@ def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, 
         config: metric parameters.
         planes: :func:`fit_reference_planes` of ``ref``/``roi`` with ``config`` (reused across methods).
         plane_fit_method: ``"auto"``, ``"grid"`` or ``"kdtree"`` (equal results).
+        threads: threads for the plane fit (results do not depend on it).
 
     Returns:
         ``(metrics, bins)``: ``metrics`` maps every name of :data:`UNITS` to a float; ``bins`` lists
@@ -866,7 +867,7 @@ def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, 
     if planes is None:
         planes = fit_reference_planes(ref, intrinsics, roi=roi, radius_m=config.radius_m,
                                       min_neighbors=config.min_neighbors, min_spread_ratio=config.min_spread_ratio,
-                                      method=plane_fit_method)
+                                      method=plane_fit_method, threads=threads)
     R = planes.mask
     M = R & _finite_positive(pred)
     out = {"n_reference": float(np.count_nonzero(R))}
@@ -874,7 +875,7 @@ def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, 
     out["n_valid"] = float(pe.pop("n_valid"))
     out["fill_rate"] = out["n_valid"] / out["n_reference"] if out["n_reference"] else float("nan")
     out.update(pe)
-    pf = plane_fit_rmse(pred, ref, intrinsics, roi=roi, planes=planes)
+    pf = plane_fit_rmse(pred, ref, intrinsics, roi=roi, planes=planes, threads=threads)
     out["plane_fit_rmse_mm"] = pf.rmse_mm
     out["plane_fit_n"] = float(pf.n_used)
     out["plane_fit_excluded_few"] = float(pf.n_excluded_few)

@@ -28,6 +28,7 @@ readable at the same path on Dask workers.
 """
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import logging
 import multiprocessing
@@ -199,8 +200,14 @@ def _publish(work: Path, out: Path) -> None:
 
 
 # ----------------------------------------------------------------------------------- executors
+def _share(processes: int) -> int:
+    """CPU threads each of ``processes`` local worker processes may use."""
+    return max(1, (os.cpu_count() or 1) // max(1, processes))
+
+
 class _Serial:
     name = "serial"
+    threads = _share(1)
 
     def run(self, tasks, on_done):
         for t in tasks:
@@ -211,6 +218,7 @@ class _Processes:
     def __init__(self, jobs: int) -> None:
         self.jobs = jobs
         self.name = f"process x{jobs}"
+        self.threads = _share(jobs)
 
     def run(self, tasks, on_done):
         ctx = multiprocessing.get_context("forkserver")
@@ -230,6 +238,7 @@ class _Dask:
     def __init__(self, workers: int | None, scheduler: str | None) -> None:
         self.workers, self.scheduler = workers, scheduler
         self.name = f"dask {scheduler}" if scheduler else f"dask LocalCluster x{workers}"
+        self.threads = None if scheduler else _share(workers)   # a remote cluster's machines are not ours to size
 
     def run(self, tasks, on_done):
         from distributed import Client, LocalCluster, as_completed
@@ -351,6 +360,8 @@ def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started
                                        config, preview=(i == mid)))
     n_todo = sum(len(t.methods) for t in tasks)
     ex = _executor(executor, jobs, workers, scheduler, max(len(tasks), 1))
+    if ex.threads is not None:
+        tasks = [dataclasses.replace(t, threads=ex.threads) for t in tasks]
     log.debug("bench: %d results to compute, %d cached, on %s", n_todo, reused, ex.name)
     for ds in ds_list:   # the inputs of the qualitative figure
         p = R.preview_path(work, ds.checksum)

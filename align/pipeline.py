@@ -148,6 +148,13 @@ class PairSetup:
     def name(self) -> str:
         return f"{self.hq}->{self.lq}"
 
+    @property
+    def lq_color_frames(self) -> frozenset:
+        cached = self.__dict__.get("_lq_color_frames")
+        if cached is None:
+            cached = self.__dict__["_lq_color_frames"] = frozenset(int(f) for f in self.f_lq_c)
+        return cached
+
 
 def pair_setup(session: Session, *, lq: str, hq: str, dejitter: bool = True) -> PairSetup:
     """Resolve streams and calibration of the pair; one-line errors for what is missing.
@@ -494,14 +501,12 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
         writer.abort()
         raise
     if report is not None:
-        report = Path(root) / report.relative_to(writer.root) if report.is_absolute() and str(report).startswith(
-            str(writer.root)) else Path(root) / report.name
+        report = Path(root) / "report.md"
     return PairOutput(Path(root), table, meta["residuals"]["depth"], report, int(kept.size), example)
 
 
 def _lq_color(sess, setup: PairSetup, frame: int, lq_depth, registered: bool, T_color_depth: Transform):
-    fn = setup.f_lq_c
-    if frame not in set(fn.tolist()):
+    if frame not in setup.lq_color_frames:
         return None
     rgb = sess.read_color(setup.lq, frame, stream=setup.lq_color)
     if registered:

@@ -17,7 +17,7 @@ def test_jitter_removed_and_gaps_honoured():
 
 def test_wandering_clock_uses_a_local_line_and_garbage_stays_raw():
     f = np.arange(600)
-    t = (f * 33333.3 + 40_000 * np.sin(f / 100)).astype(np.int64)  # rate wanders by ~1 %
+    t = (f * 33333.3 + 5_000 * np.sin(f / 100)).astype(np.int64)  # the rate wanders by 0.15 %
     r = regularize(f, t + np.random.default_rng(1).integers(-500, 501, f.size))
     e = np.abs(r.stamps_us - t)
     assert r.method == "local" and np.median(e) < 150 and e.max() < 800  # one-sided windows at the ends

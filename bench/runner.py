@@ -289,7 +289,8 @@ def _executor(executor: str, jobs: int | None, workers: int | None, scheduler: s
 def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], methods: str | Sequence[str | Denoiser],
                   out: str | os.PathLike, *, config: MetricConfig = MetricConfig(), executor: str = "process",
                   jobs: int | None = None, workers: int | None = None, scheduler: str | None = None,
-                  force: bool = False, progress: bool | None = None, report: bool = True) -> BenchResult:
+                  force: bool = False, progress: bool | None = None, report: bool = True,
+                  threads_per_task: int | None = None) -> BenchResult:
     """Score ``methods`` on every frame of ``datasets``; write (or continue) the results folder ``out``.
 
     Args:
@@ -304,6 +305,9 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
         force: replace an existing folder that cannot be continued (and drop its cache).
         progress: tqdm bar on stderr (None: only when stderr is a terminal).
         report: write the leaderboard (Markdown, HTML, figures) into ``out``.
+        threads_per_task: CPU threads a task may use (numba kernels, plane fit); default: the CPU count
+            divided among the local workers (library defaults on a remote cluster). Results do not
+            depend on it.
 
     Returns:
         A :class:`BenchResult`.
@@ -320,7 +324,7 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
     started = _now()
     try:
         result = _run(work, out, ds_list, method_list, config, prev_meta, started,
-                      executor, jobs, workers, scheduler, progress)
+                      executor, jobs, workers, scheduler, progress, threads_per_task)
         if report:
             from bench.report import write_report
             result.report = write_report(work, table=result.table)
@@ -337,7 +341,7 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
 
 
 def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started, executor, jobs, workers,
-         scheduler, progress) -> BenchResult:
+         scheduler, progress, threads_per_task=None) -> BenchResult:
     # plan: per (dataset, frame) the methods without a cache part
     tasks: list[FrameTask] = []
     needed: list[tuple[Denoiser, AlignedDataset, int]] = []
@@ -360,8 +364,9 @@ def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started
                                        config, preview=(i == mid)))
     n_todo = sum(len(t.methods) for t in tasks)
     ex = _executor(executor, jobs, workers, scheduler, max(len(tasks), 1))
-    if ex.threads is not None:
-        tasks = [dataclasses.replace(t, threads=ex.threads) for t in tasks]
+    threads = threads_per_task or ex.threads
+    if threads is not None:
+        tasks = [dataclasses.replace(t, threads=threads) for t in tasks]
     log.debug("bench: %d results to compute, %d cached, on %s", n_todo, reused, ex.name)
     for ds in ds_list:   # the inputs of the qualitative figure
         p = R.preview_path(work, ds.checksum)

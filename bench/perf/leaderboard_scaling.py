@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -25,6 +26,12 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from bench.runner import run_benchmark  # noqa: E402
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and its finished children (Dask and pool workers are children)."""
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def make_demo_data(root: Path, seconds: float) -> Path:
@@ -45,6 +52,9 @@ def main(argv=None) -> int:
     ap.add_argument("--data", type=Path, help="an aligned dataset (default: make the demo's)")
     ap.add_argument("--seconds", type=float, default=3.0, help="simulated seconds when making the demo data")
     ap.add_argument("--methods", default="all")
+    ap.add_argument("--threads-per-task", type=int, default=None,
+                    help="CPU threads per task (default: the CPUs shared among the workers: 2 for 1 worker, "
+                         "1 each for 2 workers on 2 CPUs)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="depthbench-scaling-") as tmp:
         tmp = Path(tmp)
@@ -55,13 +65,16 @@ def main(argv=None) -> int:
         for label, kw in (("dask, 1 worker", {"workers": 1}), ("dask, 2 workers", {"workers": 2}),
                           ("local processes", {})):
             load = os.getloadavg()[0]
+            c0 = _cpu()
             t0 = time.perf_counter()
-            res = run_benchmark([args.data], args.methods, tmp / label.replace(" ", "_").replace(",", ""), **kw)
+            res = run_benchmark([args.data], args.methods, tmp / label.replace(" ", "_").replace(",", ""),
+                                threads_per_task=args.threads_per_task, **kw)
             dt = time.perf_counter() - t0
+            cpu = _cpu() - c0
             digest = hashlib.sha256(res.table_path.read_bytes()).hexdigest()
             runs[label] = (dt, digest, res.computed, load)
-            print(f"  {label:<16} {dt:7.1f} s wall for {res.computed} results ({dt / res.computed * 1e3:.0f} ms each)"
-                  f"; load average before: {load:.1f}")
+            print(f"  {label:<16} {dt:7.1f} s wall, {cpu:7.1f} s CPU ({cpu / dt:.2f} cores busy) for {res.computed} "
+                  f"results ({dt / res.computed * 1e3:.0f} ms each); load average before: {load:.1f}")
         t1, t2 = runs["dask, 1 worker"][0], runs["dask, 2 workers"][0]
         same = len({d for _, d, _, _ in runs.values()}) == 1
         print(f"\n2 workers vs 1: {t1 / t2:.2f}x faster (ideal 2.00x on {os.cpu_count()} CPUs); "

@@ -6,7 +6,24 @@ import json
 import pytest
 
 from bench import results as R
-from tests.conftest import assert_one_line_error
+from tests.conftest import CliResult, assert_one_line_error
+
+
+@pytest.fixture
+def main(capsys):
+    """``depthbench ARGS...`` in this process (fast); the subprocess runner is used where startup matters."""
+    from depthbench.cli import main as depthbench_main
+
+    def run(*args) -> CliResult:
+        capsys.readouterr()
+        try:
+            code = depthbench_main([str(a) for a in args])
+        except SystemExit as exc:       # argparse usage errors
+            code = exc.code
+        out = capsys.readouterr()
+        return CliResult(code, out.out, out.err)
+
+    return run
 
 
 @pytest.mark.real
@@ -43,8 +60,9 @@ def test_bench_run_on_the_imported_ddrnet_pair(real_data, tmp_path, cli):
     assert again.returncode == 0 and "0 results computed, 4 reused" in again.stdout
 
 
-def test_bad_input_is_one_line(datasets, empty_reference_dataset, tmp_path, cli):
+def test_bad_input_is_one_line(datasets, empty_reference_dataset, tmp_path, main, cli):
     root, a, b = datasets
+    cli = main      # in-process: the same parser and error handling, without interpreter start-up
     r = cli("bench", "run", "--data", a, "--methods", "raw,nosuch", "--out", tmp_path / "r")
     assert_one_line_error(r, "--methods", "unknown method 'nosuch'")
     r = cli("bench", "run", "--data", tmp_path / "missing", "--out", tmp_path / "r")
@@ -63,8 +81,15 @@ def test_bad_input_is_one_line(datasets, empty_reference_dataset, tmp_path, cli)
     assert_one_line_error(r, "nowhere", "no such folder")
 
 
-def test_other_schema_version_via_cli(datasets, tmp_path, cli):
+def test_bad_input_through_the_real_command(datasets, tmp_path, cli):
     root, a, b = datasets
+    r = cli("bench", "run", "--data", a, "--methods", "raw,nosuch", "--out", tmp_path / "r")
+    assert_one_line_error(r, "--methods", "unknown method 'nosuch'")
+
+
+def test_other_schema_version_via_cli(datasets, tmp_path, main):
+    root, a, b = datasets
+    cli = main
     out = tmp_path / "r"
     assert cli("bench", "run", "--data", a, "--methods", "raw", "--out", out, "--radius-mm", "40",
                "--no-report").returncode == 0

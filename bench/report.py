@@ -60,6 +60,8 @@ SUMMARY_METRICS = {
     "plane_fit_rmse_mm": "plane-fit RMSE (mm)", "fill_rate": "fill rate (%)", "normal_angle_deg": "normal angle (°)",
 }
 SEQUENCE_METRICS = ("rmse_mm", "mae_mm", "plane_fit_rmse_mm", "fill_rate")
+#: Depth bins holding less than this share of a method's scored pixels are left out of the plots.
+MIN_BIN_SHARE = 0.001
 HQ_SENSOR = "hq_sensor"
 
 
@@ -166,6 +168,7 @@ def depth_curves(df: pd.DataFrame, reference: str) -> pd.DataFrame:
         tot = g["plane_fit_n"] + g["plane_fit_excluded"]
         g["excluded_share"] = np.where(tot > 0, g["plane_fit_excluded"] / tot, np.nan)
     g["depth_m"] = (g["bin_lo_m"] + g["bin_hi_m"]) / 2
+    g = g[g["n_valid"] >= MIN_BIN_SHARE * g.groupby("method_key")["n_valid"].transform("sum")]
     return g[["method_key", "depth_m", "mae_mm", "plane_fit_rmse_mm", "excluded_share", "n_valid"]]
 
 
@@ -389,6 +392,10 @@ def write_report(results_dir: str | Path, *, table: pd.DataFrame | None = None, 
         name = f"error_vs_depth_{ref}.png"
         title = f"against the {'HQ reference' if ref == 'hq' else 'truth'}, pooled over frames, by reference depth"
         figures[name] = plots.error_vs_depth(curves, labels, title=title)
+        if ref == "hq":
+            doc.para(f"Bins of {config['depth_bin_m'] if config else 0.25:g} m by reference depth, pooled over frames "
+                     f"(MAE weighted by pixels, plane-fit RMSE by points); bins with less than "
+                     f"{MIN_BIN_SHARE:.1%} of a method's pixels are left out.", cls="note")
         doc.figure(f"figures/{name}", figures[name], f"Error against depth ({'HQ reference' if ref == 'hq' else 'truth'})")
 
     doc.heading("Qualitative comparison")

@@ -316,6 +316,7 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
         BenchError (and the stage errors it wraps): one line naming the argument or file.
     """
     out = Path(out)
+    _executor(executor, jobs, workers, scheduler, 1)     # argument errors before anything is read or written
     method_list = resolve_methods(methods)
     ds_list = resolve_datasets(datasets)
     if any(ds.simulated for ds in ds_list):

@@ -44,7 +44,8 @@ from align.features import FEATURES, detect, lift, match, track
 from align.residuals import depth_residual, outliers, robust_summary
 from align.roi import background_depth, foreground_mask
 from align.timestamps import regularize
-from align.time_shift import DEFAULT_RANGE_US, Probe, ShiftEstimate, ShiftLoss, estimate_time_shift, probe_window
+from align.time_shift import (DEFAULT_RANGE_US, Probe, ShiftEstimate, ShiftLoss, estimate_time_shift,
+                              probe_window)
 from align.warp import DepthWarper, register_color
 from capture.camera import Intrinsics, Transform
 from capture.session import Session, open_session
@@ -340,6 +341,8 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
         shift = exc.estimate
         shift.time_shift_us = float(declared or 0.0)
         log.warning("%s", exc)
+    # T_ex over all probes jointly: Delta is settled now (found with T_ex from static features
+    # only), so the moving features' interpolated positions add their information too
     loss = ShiftLoss(probes, shift.T_init, setup.K_lq_color, t0_us=shift.t0_us)
     pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
     good = np.all(np.isfinite(pos), axis=1)

@@ -22,7 +22,7 @@ from tests.conftest import assert_one_line_error
 @pytest.fixture(scope="module")
 def aligned55(sim_plus55, tmp_path_factory):
     out = tmp_path_factory.mktemp("aligned") / "plus55"
-    res = align_session(sim_plus55, out, progress=False, probes=16)
+    res = align_session(sim_plus55, out, progress=False)
     return res, out
 
 

@@ -41,6 +41,10 @@ def register(subparsers) -> None:
     g.add_argument("--max-features", type=int, default=1500, metavar="N", help="keypoints per image (default: %(default)s)")
     g.add_argument("--probes", type=int, default=24, metavar="N",
                    help="HQ frames, spread over the session, whose features fit the shift and T_ex (default: %(default)s)")
+    g.add_argument("--board", metavar="SPEC", default=None,
+                   help="take T_ex from a recorded ChArUco board instead of colour features: SXxSY:SQUARE_M:MARKER_M[:DICT], "
+                        "e.g. 7x5:0.075:0.06:DICT_4X4_250 (the time shift still comes from features; a still board "
+                        "leaves it unobservable: add --allow-unobservable)")
     g.add_argument("--residual-k", type=float, default=6.0, metavar="K",
                    help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
     g = p.add_argument_group("output")
@@ -64,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         features=args.features, max_features=args.max_features, probes=args.probes, association=args.association,
         max_dt_ms=args.max_dt_ms, residual_k=args.residual_k, time_model=args.time_model, workers=args.workers,
         on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
-        report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter)
+        report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board)
     sh = r.shift
     state = "" if sh.observable else "  (UNOBSERVABLE: placeholder, see the report)"
     print(f"aligned dataset: {r.out}")

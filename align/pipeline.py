@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from align.association import associate, overlap_us
+from align.association import associate, nearest_mapping, overlap_us
 from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, UnobservableError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
@@ -88,8 +88,14 @@ class AlignOptions:
     min_matches: int = 60
     progress: bool = True
     dejitter: bool = True
+    board: str | None = None
+    board_frames: int = 30
 
     def check(self) -> None:
+        if self.board is not None:
+            from align.charuco import BoardSpec
+
+            BoardSpec.parse(self.board)
         if not self.shift_range_ms > 0:
             raise AlignError(f"--shift-range-ms must be positive, got {self.shift_range_ms:g}")
         if not 0 < self.shift_step_ms <= self.shift_range_ms:
@@ -313,6 +319,7 @@ class PairFit:
     feature_residuals_px: np.ndarray
     candidates: int
     seconds: float
+    board: dict | None = None  # ChArUco calibration summary when T_lq_hq came from a board
 
     def time_shift_at(self, t_hq_us) -> np.ndarray:
         return self.shift.shift_at(t_hq_us)
@@ -348,7 +355,41 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
     good = np.all(np.isfinite(pos), axis=1)
     fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init)
     T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
-    return PairFit(setup, shift, fit, T_lq_hq, probes, fit.residuals_px, n_cand, time.perf_counter() - t_start)
+    pf = PairFit(setup, shift, fit, T_lq_hq, probes, fit.residuals_px, n_cand, time.perf_counter() - t_start)
+    if opts.board is not None:
+        pf.T_lq_hq, pf.board = calibrate_with_board(setup, opts, pf.time_shift_at)
+        pf.seconds = time.perf_counter() - t_start
+    return pf
+
+
+def calibrate_with_board(setup: PairSetup, opts: AlignOptions, shift_at) -> tuple[Transform, dict]:
+    """T_lq_hq from a recorded ChArUco board (``align.charuco``): the board's pose in the HQ and the
+    LQ colour images of up to ``opts.board_frames`` pairs (paired at the fitted shift), combined
+    robustly; ``T_lq_hq = T_lqdepth_lqcolor * T_lqcolor_hqcolor * T_hqcolor_hqdepth``."""
+    from align.charuco import BoardSpec, board_pose, detect_board, extrinsics_from_boards
+    from align.errors import CalibrationBoardError
+
+    spec = BoardSpec.parse(opts.board)
+    sess = setup.session
+    idx = np.unique(np.linspace(0, setup.t_hq_c.size - 1, min(opts.board_frames, setup.t_hq_c.size)).round().astype(int))
+    lq_of = nearest_mapping(setup.t_hq_c[idx], setup.t_lq_c, shift_at(setup.t_hq_c[idx]))
+    poses_hq, poses_lq = [], []
+    for i, j in zip(idx, lq_of):
+        try:
+            a = board_pose(*detect_board(sess.read_color(setup.hq, int(setup.f_hq_c[i]), stream=setup.hq_color), spec),
+                           spec, setup.K_hq_color)
+            b = board_pose(*detect_board(sess.read_color(setup.lq, int(setup.f_lq_c[j]), stream=setup.lq_color), spec),
+                           spec, setup.K_lq_color)
+        except CalibrationBoardError:
+            continue
+        poses_hq.append(a.T_cam_board)
+        poses_lq.append(b.T_cam_board)
+    if not poses_hq:
+        raise CalibrationBoardError(f"{sess.root}: the ChArUco board {opts.board} was not seen by both {setup.hq} and "
+                                    f"{setup.lq} in any of {idx.size} frame pairs")
+    T_lqc_hqc, spread = extrinsics_from_boards(poses_lq, poses_hq)
+    T = setup.T_lqdepth_lqcolor @ T_lqc_hqc @ setup.T_hqdepth_hqcolor.inverse()
+    return T, {"board": opts.board, **spread}
 
 
 # --------------------------------------------------------------------------------------- pairs
@@ -534,6 +575,8 @@ def _metadata(setup: PairSetup, pf: PairFit, table: PairTable, opts: AlignOption
         "time_model": pf.shift.to_dict(),
         "T_lq_hq": pf.T_lq_hq.to_list(),
         "T_lq_hq_std": {"rotation_deg": pf.fit.rotation_std_deg, "translation_mm": 1e3 * pf.fit.translation_std_m},
+        "T_lq_hq_source": "charuco" if pf.board else "features",
+        **({"charuco": pf.board} if pf.board else {}),
         "residuals": {
             "features": {**robust_summary(fr[np.isfinite(fr)]), "inliers": pf.fit.n_inliers, "pairs": pf.fit.n_pairs,
                          "unit": "px", "rms_inliers_px": pf.fit.rms_px},

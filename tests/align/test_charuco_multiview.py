@@ -137,3 +137,67 @@ def test_multiview_rig_in_one_frame(multiview):
     for v in ("view0", "view1", "view2", "view3"):
         assert (out / v / "aligned.json").is_file() and (out / v / "report.md").is_file()
     assert (out / "report.md").is_file()
+
+
+def _board_session(root, spec, T_lq_hq, T_hqd_hqc):
+    """A hand-written session: a textured wall, a ChArUco board moved in front of it, seen by an LQ
+    camera (colour = depth) and an HQ camera (depth + its own colour camera), both at 30 fps."""
+    from capture.session import SessionWriter
+    from tests.align.scene import Plane, Rect, cast, texture
+
+    K_lq = Intrinsics(640, 480, 600.0, 600.0, 319.5, 239.5)
+    K_hd = Intrinsics(512, 424, 365.0, 365.0, 255.5, 211.5)
+    K_hc = Intrinsics(960, 540, 530.0, 530.0, 479.5, 269.5)
+
+    def stream(K, kind):
+        d = {"type": kind, "width": K.width, "height": K.height, "fps": 30.0, "encoding": "png16" if kind == "depth" else "png",
+             "intrinsics": K.to_dict()}
+        if kind == "depth":
+            d["depth_unit_m"] = 0.001
+        return d
+
+    manifest = {"name": "board", "time_base": "host", "clock_facts": {"time_shift_us": 0},
+                "sensors": {"lq": {"role": "lq", "model": "test", "serial": "1", "streams": {"depth": stream(K_lq, "depth"),
+                                   "color": stream(K_lq, "color")}, "T_depth_color": Transform.identity().to_list()},
+                            "hq": {"role": "hq", "model": "test", "serial": "2", "streams": {"depth": stream(K_hd, "depth"),
+                                   "color": stream(K_hc, "color")}, "T_depth_color": T_hqd_hqc.to_list()}}}
+    wall = Plane((0, 0, 2.5), (0, 0, 1))
+    T_world_lq = Transform.identity()
+    T_world_hqd = T_world_lq @ T_lq_hq
+    cams = {("lq", "depth"): (K_lq, T_world_lq), ("lq", "color"): (K_lq, T_world_lq),
+            ("hq", "depth"): (K_hd, T_world_hqd), ("hq", "color"): (K_hc, T_world_hqd @ T_hqd_hqc)}
+    with SessionWriter(root, manifest) as w:
+        for k in range(12):
+            T_w_board = Transform.from_rotvec([0.15 * np.sin(k), 0.25 * np.cos(k), 0.05], [-0.3 + 0.01 * k, -0.2, 1.2])
+            corner = T_w_board.apply(np.array([[0, 0, 0]]))[0]
+            ex, ey = T_w_board.R[:, 0], T_w_board.R[:, 1]
+            w_, h_ = spec.squares_x * spec.square_m, spec.squares_y * spec.square_m
+            board = Rect(tuple(corner + ex * w_ / 2 + ey * h_ / 2), tuple(ex * w_ / 2), tuple(ey * h_ / 2))
+            t_us = 1_000_000 + k * 33_333
+            for (sid, kind), (K, T_world_cam) in cams.items():
+                T_cam_world = T_world_cam.inverse()
+                depth, P, which = cast(K, T_cam_world, [wall, board])
+                if kind == "depth":
+                    img = depth.astype(np.float32)
+                else:
+                    img = texture(P)
+                    view = _view_board(spec, K, T_cam_world @ T_w_board)
+                    on = which == 1
+                    img[on] = np.repeat(view[on][:, None], 3, axis=1)
+                w.add_frame(sid, kind, k + 1, t_us, t_us, img)
+    return root
+
+
+def test_charuco_path_through_align_session(tmp_path):
+    from align.pipeline import align_session
+
+    spec = BoardSpec(7, 5, 0.08, 0.064)
+    T_lq_hq = Transform.from_rotvec([0.01, -0.03, 0.004], [0.125, 0.011, -0.006])
+    T_hqd_hqc = Transform.from_rotvec([0.002, -0.003, 0.001], [-0.052, 0.001, 0.0006])
+    root = _board_session(tmp_path / "board", spec, T_lq_hq, T_hqd_hqc)
+    r = align_session(root, tmp_path / "aligned", progress=False, probes=4, board="7x5:0.08:0.064",
+                      on_unobservable="flag", report=False, min_matches=12)
+    dt, dr = r.T_lq_hq.error_to(T_lq_hq)
+    assert dt < 0.003 and dr < 0.15, (dt, dr)
+    meta = json.loads((tmp_path / "aligned" / "aligned.json").read_text())
+    assert meta["T_lq_hq_source"] == "charuco" and meta["charuco"]["views"] >= 6

@@ -104,15 +104,12 @@ def test_warped_reference_against_lq_truth(sim_plus55, aligned55):
 
 
 def test_static_scene_is_reported_unobservable(sim_static, tmp_path, cli):
-    with pytest.raises(UnobservableError, match="unobservable"):
-        align_session(sim_static, tmp_path / "a", progress=False, probes=8)
-    assert not (tmp_path / "a").exists()
     r = cli("align", str(sim_static), "--out", str(tmp_path / "b"), "--probes", "8", "--no-progress")
     assert_one_line_error(r, "time shift unobservable", "static")
-    r = cli("align", str(sim_static), "--out", str(tmp_path / "c"), "--probes", "8", "--no-progress",
-            "--allow-unobservable", "--no-report")
-    assert r.returncode == 0, r.stderr
-    assert "UNOBSERVABLE" in r.stdout
+    assert not (tmp_path / "b").exists()
+    res = align_session(sim_static, tmp_path / "c", progress=False, probes=8, on_unobservable="flag")
+    assert not res.observable
+    assert "unobservable" in (tmp_path / "c" / "report.md").read_text()
     meta = json.loads((tmp_path / "c" / "aligned.json").read_text())
     assert meta["time_model"]["observable"] is False and meta["time_model"]["reason"]
     # the shift is unobservable, the extrinsics are not

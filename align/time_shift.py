@@ -307,7 +307,7 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
                         range_us: tuple[int, int] = (-DEFAULT_RANGE_US, DEFAULT_RANGE_US),
                         step_us: int = DEFAULT_STEP_US, model: str = "constant", drift_ppm: float | None = None,
                         declared_shift_us: float | None = None, scale_px: float = 1.5, inlier_px: float = 2.0,
-                        iterations: int = 3, max_std_us: float = 500.0, min_moving: int = 30,
+                        iterations: int = 3, max_std_us: float = 5000.0, min_moving: int = 30,
                         moving_px: float = 1.0, t0_us: int | None = None) -> ShiftEstimate:
     """Find Delta (and, with ``model="linear"``, the drift) from probes; see the module docstring.
 

@@ -50,6 +50,7 @@ eigenvalues, cross-product eigenvector), ~30x faster than batched ``numpy.linalg
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 
@@ -411,11 +412,20 @@ def _crop_box(vv: np.ndarray, uu: np.ndarray, shape: tuple[int, int]) -> tuple[s
             slice(max(int(uu.min()) - _GRID_CAP, 0), min(int(uu.max()) + _GRID_CAP + 1, shape[1])))
 
 
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOL_LOCK = threading.Lock()
+
+
 def _run(fn, items, threads: int) -> list:
+    """``[fn(*it) for it in items]``, on up to ``threads`` threads of a pool kept for the process
+    (starting threads per call costs more than small strips take)."""
     if threads <= 1 or len(items) <= 1:
         return [fn(*it) for it in items]
-    with ThreadPoolExecutor(min(threads, len(items))) as ex:
-        return list(ex.map(lambda it: fn(*it), items))
+    with _POOL_LOCK:
+        pool = _POOLS.get(threads)
+        if pool is None:
+            pool = _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix=f"bench-metrics-{threads}")
+    return list(pool.map(lambda it: fn(*it), items))
 
 
 def _chunks(n: int, parts: int) -> list[tuple[int, int]]:

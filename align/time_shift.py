@@ -58,7 +58,7 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from align.errors import AlignError, AssociationError, ShiftRangeError, UnobservableError
-from align.extrinsics import fit_extrinsics, refine_extrinsics
+from align.extrinsics import fit_extrinsics
 from capture.camera import Intrinsics, Transform
 
 log = logging.getLogger(__name__)
@@ -297,7 +297,8 @@ def _information(loss: ShiftLoss, a: float, b: float, *, moving_px: float):
     inl = finite & (rn < 3 * sigma * np.sqrt(2))
     # a feature "moves" when its straight-line displacement over the window exceeds moving_px and
     # is clearly above its own tracking noise (noise alone never looks like motion)
-    moving = inl & (loss.motion_px > np.maximum(moving_px, 6 * loss.track_noise_px))
+    noise = max(float(np.median(loss.track_noise_px)), 1e-3)  # the session's tracking noise (robust)
+    moving = inl & (loss.motion_px > np.maximum(moving_px, 6 * np.maximum(loss.track_noise_px, noise)))
     info = float(np.sum(vel[moving] ** 2)) / sigma ** 2
     std = 1.0 / np.sqrt(info) if info > 0 else float("inf")
     return std, int(moving.sum()), float(sigma)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from align.dataset import AlignedDataset
-from align.errors import AssociationError, FeatureError, ShiftRangeError, UnobservableError
+from align.errors import AssociationError, FeatureError, ShiftRangeError
 from align.pipeline import align_session
 from capture.session import open_session
 from capture.truth import read_truth

@@ -48,7 +48,9 @@ def _probes(shift_us, *, drift_ppm=0.0, seconds=4.0, fps_hq=30.0, fps_lq=30.0, n
             continue
         X = at(s_hq[i])
         tracks = np.stack([K.project(T_lq_hq.apply(at(s_lq[j]))) for j in win])
-        tracks += rng.normal(0, noise_px, tracks.shape)
+        # matching noise: one offset per feature (HQ and LQ keypoints of one point disagree a little),
+        # tracking noise: small, per frame (optical flow follows the LQ keypoint smoothly)
+        tracks += rng.normal(0, noise_px, (1,) + tracks.shape[1:]) + rng.normal(0, 0.05, tracks.shape)
         probes.append(Probe(int(i), int(t_hq[i]), X, win, t_lq[win], tracks, win.size // 2))
     return probes, t_hq, t_lq
 

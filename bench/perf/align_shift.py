@@ -2,8 +2,8 @@
 
 Run:  .venv/bin/python bench/perf/align_shift.py [--session SIM] [--workers 2] [--probes 24]
 
-Without ``--session`` it first simulates a 30 s lq-hq session (default resolutions; minutes) into
-``--cache`` and reuses it on later runs. It then runs the fit that ``depthbench align`` runs
+Without ``--session`` it first simulates a 30 s lq-hq session (default resolutions; minutes, ~2 GB) into
+``--cache`` (a temporary folder by default) and reuses it on later runs. It then runs the fit that ``depthbench align`` runs
 (:func:`align.pipeline.fit_pair`: probe features once per frame, the coarse scan over +-60 ms,
 the bracketing refinement, T_ex), timed, and prints:
 
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import tempfile
 import time
 from pathlib import Path
 
@@ -28,8 +29,8 @@ from capture.session import open_session
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--session", help="simulated lq-hq session (default: simulate 30 s into --cache)")
-    ap.add_argument("--cache", default=str(Path(__file__).resolve().parent / ".cache" / "lqhq30"),
-                    help="where the simulated session is kept between runs")
+    ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "depthbench-align-shift-lqhq30"),
+                    help="where the simulated session (about 2 GB) is kept between runs (default: %(default)s)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--probes", type=int, default=24)
     ap.add_argument("--seed", type=int, default=7)

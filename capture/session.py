@@ -20,7 +20,6 @@ import io
 import json
 import os
 import shutil
-import tempfile
 import threading
 import zlib
 from dataclasses import dataclass
@@ -35,7 +34,7 @@ from capture.camera import Intrinsics, Transform
 from capture.errors import CalibrationError, SessionFormatError
 from data_manifests import schema_problem
 from depthbench.errors import UnsafePathError
-from depthbench.fsutil import atomic_write_json, check_output_free, safe_join, sha256_bytes, sha256_file
+from depthbench.fsutil import atomic_write_json, check_output_free, safe_join, sha256_bytes, sha256_file, staging_dir_for
 
 FORMAT = "depthbench.session"
 FORMAT_VERSION = "1.0"
@@ -393,8 +392,7 @@ class SessionWriter:
         # The skeleton (folders, frames.csv headers, session.json) is built under a temporary
         # sibling name, so the folder appears complete or not at all. ``staged`` keeps it there
         # until close(); otherwise it is published at once and frames are written in place.
-        self.root = Path(tempfile.mkdtemp(prefix=f".{self.final_root.name}.", suffix=".partial",
-                                          dir=self.final_root.parent))
+        self.root = staging_dir_for(self.final_root)
         try:
             for sid, s in self.sensors.items():
                 for stream in s.streams:

@@ -20,6 +20,20 @@ from typing import Iterator
 from depthbench.errors import OutputExistsError, UnsafePathError
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _publishable(path: Path, *, directory: bool) -> None:
+    """Give a temporary file/folder the permissions a plain ``open``/``mkdir`` would have.
+
+    ``mkstemp``/``mkdtemp`` create 0600/0700 entries; renamed into place they would make every
+    output private to its writer. Outputs follow the user's umask instead."""
+    os.chmod(path, (0o777 if directory else 0o666) & ~_umask())
+
+
 def sha256_bytes(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
@@ -37,6 +51,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, fsync: bool = Fa
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        _publishable(Path(tmp), directory=False)
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             if fsync:
@@ -66,6 +81,7 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
     try:
+        _publishable(Path(tmp), directory=False)
         yield Path(tmp)
         os.replace(tmp, path)
     except BaseException:
@@ -84,6 +100,14 @@ def check_output_free(path: str | os.PathLike, *, force: bool, what: str = "outp
     raise OutputExistsError(f"{path}: {what} exists; pass --force to replace it")
 
 
+def staging_dir_for(path: str | os.PathLike) -> Path:
+    """A new hidden sibling folder ``.NAME.XXXX.partial`` to build ``path`` in (umask permissions)."""
+    path = Path(path)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent))
+    _publishable(tmp, directory=True)
+    return tmp
+
+
 @contextlib.contextmanager
 def staged_directory(path: str | os.PathLike, *, force: bool = False, what: str = "output") -> Iterator[Path]:
     """Build a folder under a temporary sibling name and publish it as ``path`` on success.
@@ -94,7 +118,7 @@ def staged_directory(path: str | os.PathLike, *, force: bool = False, what: str 
     path = Path(path)
     check_output_free(path, force=force, what=what)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent))
+    tmp = staging_dir_for(path)
     try:
         yield tmp
     except BaseException:

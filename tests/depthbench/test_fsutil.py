@@ -60,3 +60,18 @@ def test_safe_join_refuses_escapes(tmp_path, rel):
 
 def test_safe_join_accepts_inside(tmp_path):
     assert safe_join(tmp_path, "lq/depth/1.png") == (tmp_path / "lq/depth/1.png").resolve()
+
+
+def test_published_outputs_follow_the_umask_not_tempfile_privacy(tmp_path):
+    old = os.umask(0o022)
+    try:
+        atomic_write_text(tmp_path / "f.txt", "x")
+        with atomic_output(tmp_path / "g.bin") as tmp:
+            tmp.write_bytes(b"x")
+        with staged_directory(tmp_path / "d") as d:
+            (d / "x").write_text("x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "f.txt").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "g.bin").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "d").stat().st_mode & 0o777 == 0o755

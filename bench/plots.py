@@ -117,10 +117,8 @@ def qualitative(inputs: dict[str, np.ndarray], denoised: dict[str, np.ndarray], 
     cell = 2.4
     fig, axes = plt.subplots(2, n, figsize=(cell * n, 2 * cell * crop_h / max(crop_w, 1) + 0.9),
                              constrained_layout=True, squeeze=False)
-    cmap = plt.get_cmap("turbo").copy()
-    cmap.set_bad("black")
-    gray = plt.get_cmap("gray").copy()
-    gray.set_bad("black")
+    cmap = plt.get_cmap("turbo").with_extremes(bad="black")
+    gray = plt.get_cmap("gray").with_extremes(bad="black")
     for j, (label, depth) in enumerate(cols):
         d = np.where(roi, depth, np.nan) if roi is not None else depth
         im = axes[0, j].imshow(d[box], cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")

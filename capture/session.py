@@ -115,6 +115,19 @@ class StreamInfo:
     intrinsics: Intrinsics
     depth_unit_m: float | None = None
 
+    @property
+    def period_us(self) -> float:
+        """Nominal frame period, µs."""
+        return 1e6 / self.fps
+
+    def to_manifest(self) -> dict:
+        """The stream's entry of ``session.json`` (``sensors.ID.streams.NAME``)."""
+        d = {"type": self.type, "width": int(self.width), "height": int(self.height), "fps": float(self.fps),
+             "encoding": self.encoding, "intrinsics": self.intrinsics.to_dict()}
+        if self.depth_unit_m is not None:
+            d["depth_unit_m"] = float(self.depth_unit_m)
+        return d
+
 
 @dataclass(frozen=True)
 class SensorInfo:

@@ -59,6 +59,7 @@ import numpy as np
 
 from capture.camera import Intrinsics, Transform
 from capture.errors import DeviceError, RigError
+from capture.session import StreamInfo
 
 #: Driver name -> module that defines (and registers) it. A module is imported the first time
 #: its driver is asked for. Add a line here when a new driver module lands.
@@ -133,8 +134,9 @@ class SensorConfig:
 
 # ----------------------------------------------------------------------------- device-side facts
 @dataclass(frozen=True)
-class StreamDescription:
-    """One stream as the device actually delivers it (after ``open``).
+class StreamDescription(StreamInfo):
+    """One stream as the device actually delivers it (after ``open``): a session
+    :class:`~capture.session.StreamInfo` whose fields a driver filled, checked on creation.
 
     Attributes:
         name: stream name in the session (``"depth"``, ``"color"``, ``"ir"``).
@@ -146,15 +148,6 @@ class StreamDescription:
         depth_unit_m: metres per depth count (depth streams only), e.g. 0.001.
     """
 
-    name: str
-    type: str
-    width: int
-    height: int
-    fps: float
-    encoding: str
-    intrinsics: Intrinsics
-    depth_unit_m: float | None = None
-
     def __post_init__(self) -> None:
         if self.type not in STREAM_TYPES:
             raise DeviceError(f"stream {self.name}: unknown type {self.type!r} (expected one of {STREAM_TYPES})")
@@ -162,18 +155,6 @@ class StreamDescription:
             raise DeviceError(f"stream {self.name}: unknown encoding {self.encoding!r} (expected one of {ENCODINGS})")
         if self.type == "depth" and not (self.depth_unit_m and self.depth_unit_m > 0):
             raise DeviceError(f"stream {self.name}: a depth stream needs a positive depth_unit_m")
-
-    @property
-    def period_us(self) -> float:
-        return 1e6 / self.fps
-
-    def to_manifest(self) -> dict:
-        """The stream's entry of ``session.json`` (``sensors.ID.streams.NAME``)."""
-        d = {"type": self.type, "width": int(self.width), "height": int(self.height), "fps": float(self.fps),
-             "encoding": self.encoding, "intrinsics": self.intrinsics.to_dict()}
-        if self.depth_unit_m is not None:
-            d["depth_unit_m"] = float(self.depth_unit_m)
-        return d
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,6 @@ log = logging.getLogger(__name__)
 
 EXECUTORS = ("process", "dask")
 #: Short names of the seed report (Table I) for the registered filters.
-ALIASES = {"bf": "bilateral", "jbf": "joint_bilateral", "rgf": "rolling_guidance"}
 
 
 class EmptyReferenceError(BenchError):
@@ -108,14 +107,12 @@ def resolve_methods(methods: str | Sequence[str | Denoiser]) -> list[Denoiser]:
             return [cls() for cls in available().values()]
         methods = names
     out: list[Denoiser] = []
-    known = available()
     for m in methods:
         if isinstance(m, str):
             try:
-                m = get(m if m in known else ALIASES.get(m, m))
+                m = get(m)  # names or the seed's aliases (bf, jbf, rgf)
             except UnknownMethodError as exc:
-                raise UnknownMethodError(f"--methods: {exc}; aliases: "
-                                         f"{', '.join(f'{a}={n}' for a, n in ALIASES.items())}") from None
+                raise UnknownMethodError(f"--methods: {exc}") from None
         out.append(m)
     if not out:
         raise BenchError("--methods: no method given (use 'all' or names such as raw,bf)")

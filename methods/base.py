@@ -32,12 +32,18 @@ def available() -> dict[str, type["Denoiser"]]:
     return dict(_REGISTRY)
 
 
+#: The seed report's abbreviations (Table I), accepted wherever a method name is.
+ALIASES = {"bf": "bilateral", "jbf": "joint_bilateral", "rgf": "rolling_guidance"}
+
+
 def get(name: str, **params: Any) -> "Denoiser":
-    """An instance of method ``name`` with ``params`` overriding its defaults."""
+    """An instance of method ``name`` (or its alias, e.g. ``"bf"``) with ``params`` overriding its defaults."""
     methods = available()
-    if name not in methods:
-        raise UnknownMethodError(f"unknown method {name!r} (known: {', '.join(methods)})")
-    return methods[name](**params)
+    resolved = name if name in methods else ALIASES.get(name, name)
+    if resolved not in methods:
+        aliases = ", ".join(f"{a}={n}" for a, n in ALIASES.items() if n in methods)
+        raise UnknownMethodError(f"unknown method {name!r} (known: {', '.join(methods)}; aliases: {aliases})")
+    return methods[resolved](**params)
 
 
 def check_depth(depth: np.ndarray, *, name: str = "depth") -> np.ndarray:

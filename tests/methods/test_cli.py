@@ -129,3 +129,10 @@ def test_missing_dataset_and_missing_colour(main, tmp_path):
 def test_help_is_useful(main):
     r = main("methods", "run", "--help")
     assert r.returncode == 0 and "--param" in r.stdout and "--force" in r.stdout and "uint16" in r.stdout
+
+
+def test_seed_report_aliases_name_the_same_methods():
+    from methods.base import get
+
+    assert get("bf").name == "bilateral" and get("jbf").name == "joint_bilateral" and get("rgf").name == "rolling_guidance"
+    assert get("rgf", iterations=3).params["iterations"] == 3

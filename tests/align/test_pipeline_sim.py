@@ -197,3 +197,17 @@ def test_existing_output_is_not_overwritten(sim_plus55, tmp_path, cli):
     assert_one_line_error(r, "/nonexistent/session")
     r = cli("align", "--help")
     assert r.returncode == 0 and "--shift-range-ms" in r.stdout and "--association" in r.stdout
+
+
+def test_the_fit_never_reads_truth(sim_plus55, aligned55, tmp_path):
+    """Deleting truth/ changes nothing but the truth layer: the fit cannot have looked at it.
+    (Two separate runs agreeing bit for bit also shows the alignment is reproducible.)"""
+    _, out_with = aligned55
+    blind = _copy(sim_plus55, tmp_path / "no-truth")
+    shutil.rmtree(blind / "truth")
+    align_session(blind, tmp_path / "aligned", progress=False)
+    with_truth, without = AlignedDataset(out_with), AlignedDataset(tmp_path / "aligned")
+    assert without.time_shift_us == with_truth.time_shift_us
+    np.testing.assert_array_equal(without.T_lq_hq.matrix, with_truth.T_lq_hq.matrix)
+    assert len(without) == len(with_truth) and not without.simulated and with_truth.simulated
+    np.testing.assert_array_equal(without.reference(0), with_truth.reference(0))

@@ -12,7 +12,6 @@ weighs the same) with 95 % percentile bootstrap intervals: frames are resampled 
 from __future__ import annotations
 
 import base64
-import os
 import html
 import warnings
 import re
@@ -446,15 +445,12 @@ def write_report(results_dir: str | Path, *, table: pd.DataFrame | None = None, 
     figs_dir = root / "figures"
     written = []
     with staged_directory(figs_dir, force=True, what="figures folder") as tmp:
-        os.chmod(tmp, 0o777 & ~R.UMASK)
         for name, png in figures.items():
             (tmp / name).write_bytes(png)
             written.append(figs_dir / name)
     md_path, html_path = root / "leaderboard.md", root / "leaderboard.html"
     atomic_write_text(md_path, "\n".join(doc.md))
-    R.share_permissions(md_path)
     page = ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>depthbench leaderboard</title>"
             f"<style>{_CSS}</style></head><body>" + "\n".join(doc.html) + "</body></html>\n")
     atomic_write_text(html_path, page)
-    R.share_permissions(html_path)
     return ReportPaths(md_path, html_path, written)

@@ -58,20 +58,6 @@ COLUMNS = tuple(SCHEMA.names)
 _META = {b"depthbench.format": FORMAT.encode(), b"depthbench.schema_version": str(SCHEMA_VERSION).encode()}
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-UMASK = _umask()
-
-
-def share_permissions(path: Path) -> None:
-    """Give a file written through a temporary name (0600) the usual permissions (0644 under umask 022)."""
-    os.chmod(path, 0o666 & ~UMASK)
-
-
 class ResultsFormatError(BenchError):
     """A results folder or table that this version cannot read."""
 
@@ -109,7 +95,6 @@ def write_table(df: pd.DataFrame, path: Path) -> str:
     with atomic_output(path) as tmp:
         pq.write_table(table, tmp, compression="zstd")
         digest = hashlib.sha256(tmp.read_bytes()).hexdigest()
-        share_permissions(tmp)
     return digest
 
 
@@ -183,7 +168,6 @@ def write_manifest(root: Path, meta: dict) -> None:
     if problem:   # a bug, not user input
         raise ResultsFormatError(f"{Path(root) / MANIFEST}: refusing to write an invalid manifest: {problem}")
     atomic_write_json(Path(root) / MANIFEST, meta)
-    share_permissions(Path(root) / MANIFEST)
 
 
 def load_results(path: str | os.PathLike) -> pd.DataFrame:
@@ -211,7 +195,6 @@ def save_npz(path: Path, **arrays) -> None:
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, **clean)
-        share_permissions(tmp)
 
 
 def load_npz(path: Path) -> dict[str, np.ndarray] | None:

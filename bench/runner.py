@@ -37,7 +37,6 @@ import multiprocessing
 import os
 import shutil
 import sys
-import tempfile
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +52,7 @@ from bench.compute import FrameOutput, FrameTask, HQSensor, compute_frame, previ
 from bench.errors import BenchError
 from bench.metrics import MetricConfig
 from depthbench.errors import OutputExistsError
+from depthbench.fsutil import publish_directory, staging_dir_for
 from methods.base import Denoiser, available, get
 from methods.errors import UnknownMethodError
 
@@ -183,19 +183,7 @@ def _prepare_out(out: Path, config: MetricConfig, force: bool) -> tuple[Path, di
             R.load_results(out)      # the table must be readable too
         return out, meta, False
     out.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
-    os.chmod(work, 0o777 & ~R.UMASK)      # mkdtemp makes 0700; a results folder is meant to be shared
-    return work, None, True
-
-
-def _publish(work: Path, out: Path) -> None:
-    old = None
-    if out.exists():
-        old = out.parent / f".{out.name}.old-{os.getpid()}"
-        os.replace(out, old)
-    os.replace(work, out)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True) if old.is_dir() else old.unlink()
+    return staging_dir_for(out), None, True
 
 
 # ----------------------------------------------------------------------------------- executors
@@ -336,7 +324,7 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
             from bench.report import write_report
             result.report = write_report(work, table=result.table)
         if staged:
-            _publish(work, out)
+            publish_directory(work, out)
             if result.report is not None:
                 result.report = result.report.moved(work, out)
         result.out = out

@@ -34,7 +34,7 @@ from capture.camera import Intrinsics, Transform
 from capture.errors import CalibrationError, SessionFormatError
 from data_manifests import schema_problem
 from depthbench.errors import UnsafePathError
-from depthbench.fsutil import atomic_write_json, check_output_free, safe_join, sha256_bytes, sha256_file, staging_dir_for
+from depthbench.fsutil import atomic_write_json, check_output_free, safe_join, sha256_bytes, sha256_file, publish_directory, staging_dir_for
 
 FORMAT = "depthbench.session"
 FORMAT_VERSION = "1.0"
@@ -558,14 +558,7 @@ class SessionWriter:
         self.manifest["status"] = status
         atomic_write_json(self.root / MANIFEST, self.manifest, fsync=self.fsync)
         if self.staged:
-            old = None
-            if self.final_root.exists():
-                old = self.final_root.with_name(f".{self.final_root.name}.old-{os.getpid()}")
-                os.replace(self.final_root, old)
-            os.replace(self.root, self.final_root)
-            if old is not None:
-                shutil.rmtree(old, ignore_errors=True)
-            self.root = self.final_root
+            self.root = publish_directory(self.root, self.final_root)
         self.closed = True
         return self.final_root
 

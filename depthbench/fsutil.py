@@ -124,6 +124,15 @@ def staged_directory(path: str | os.PathLike, *, force: bool = False, what: str 
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    publish_directory(tmp, path)
+
+
+def publish_directory(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
+    """Rename a completed staging folder onto ``path``, replacing what is there only now.
+
+    The old ``path`` is moved aside first and removed after the rename, so ``path`` is at every
+    moment either the old complete output or the new one."""
+    tmp, path = Path(tmp), Path(path)
     old = None
     if path.exists():
         old = path.parent / f".{path.name}.old-{os.getpid()}"
@@ -131,6 +140,7 @@ def staged_directory(path: str | os.PathLike, *, force: bool = False, what: str 
     os.replace(tmp, path)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True) if old.is_dir() else old.unlink()
+    return path
 
 
 def safe_join(root: str | os.PathLike, relative: str, *, source: str | os.PathLike | None = None) -> Path:

@@ -31,7 +31,7 @@ from capture.camera import Intrinsics, Transform
 from capture.session import decode_depth, encode_depth
 from data_manifests import schema_problem
 from depthbench.errors import UnsafePathError
-from depthbench.fsutil import atomic_write_json, safe_join, sha256_bytes, staged_directory
+from depthbench.fsutil import atomic_write_json, read_json, safe_join, sha256_bytes, staged_directory
 
 FORMAT = "depthbench.aligned"
 FORMAT_VERSION = "1.0"
@@ -71,12 +71,7 @@ class AlignedDataset:
     def __init__(self, root: str | os.PathLike) -> None:
         self.root = Path(root)
         self.meta_path = self.root / MANIFEST
-        try:
-            self.meta = json.loads(self.meta_path.read_text())
-        except FileNotFoundError:
-            raise AlignedFormatError(f"{self.meta_path}: missing (not an aligned dataset)") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise AlignedFormatError(f"{self.meta_path}: not valid JSON ({exc})") from None
+        self.meta = read_json(self.meta_path, error=AlignedFormatError, missing=" (not an aligned dataset)")
         _check_meta(self.meta, self.meta_path)
         self.frames_path = self.root / "frames.csv"
         try:

@@ -17,7 +17,6 @@ Everything is written through a temporary name and renamed; ``.npz`` files hold 
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 from pathlib import Path
 
@@ -28,7 +27,7 @@ import pyarrow.parquet as pq
 
 from bench.errors import BenchError
 from data_manifests import schema_problem
-from depthbench.fsutil import atomic_output, atomic_write_json
+from depthbench.fsutil import atomic_output, atomic_write_json, read_json
 
 FORMAT = "depthbench.results"
 SCHEMA_VERSION = 1
@@ -146,12 +145,7 @@ def sort_rows(df: pd.DataFrame) -> pd.DataFrame:
 def read_manifest(root: Path) -> dict:
     """``results.json`` of a results folder, checked against its schema and version."""
     path = Path(root) / MANIFEST
-    try:
-        meta = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ResultsFormatError(f"{path}: missing (not a depthbench results folder)") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ResultsFormatError(f"{path}: not valid JSON ({exc})") from None
+    meta = read_json(path, error=ResultsFormatError, missing=" (not a depthbench results folder)")
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise ResultsFormatError(f"{path}: 'format' must be {FORMAT!r} (not a depthbench results folder)")
     if meta.get("schema_version") != SCHEMA_VERSION:

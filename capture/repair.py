@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 import re
 from dataclasses import dataclass, field
@@ -28,7 +27,7 @@ from capture.errors import SessionFormatError
 from capture.recorder import RESERVE_NAME, missing_between
 from capture.session import (FRAMES_COLUMNS, MANIFEST, image_structure_problem, open_session, validate_manifest)
 from depthbench.errors import UnsafePathError
-from depthbench.fsutil import atomic_write_bytes, atomic_write_json, safe_join, sha256_bytes
+from depthbench.fsutil import atomic_write_bytes, atomic_write_json, read_json, safe_join, sha256_bytes
 
 _SHA = re.compile(r"^[0-9a-f]{64}$")
 
@@ -64,12 +63,8 @@ def repair(path: str | os.PathLike, *, dry_run: bool = False) -> RepairResult:
     manifest_path = root / MANIFEST
     if not root.is_dir():
         raise SessionFormatError(f"{root}: not a session folder (does not exist or is not a folder)")
-    try:
-        manifest = json.loads(manifest_path.read_text())
-    except FileNotFoundError:
-        raise SessionFormatError(f"{manifest_path}: missing; a session cannot be rebuilt without it") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SessionFormatError(f"{manifest_path}: not valid JSON ({exc}); cannot repair") from None
+    manifest = read_json(manifest_path, error=SessionFormatError, missing="; a session cannot be rebuilt without it",
+                         invalid_note="; cannot repair")
     validate_manifest(manifest, manifest_path)
     result = RepairResult(root, status_before=manifest.get("status", "complete"))
     new_tables: dict[Path, bytes] = {}

@@ -34,7 +34,8 @@ from capture.camera import Intrinsics, Transform
 from capture.errors import CalibrationError, SessionFormatError
 from data_manifests import schema_problem
 from depthbench.errors import UnsafePathError
-from depthbench.fsutil import atomic_write_json, check_output_free, safe_join, sha256_bytes, sha256_file, publish_directory, staging_dir_for
+from depthbench.fsutil import (atomic_write_json, check_output_free, publish_directory, read_json, safe_join,
+                                  sha256_bytes, sha256_file, staging_dir_for)
 
 FORMAT = "depthbench.session"
 FORMAT_VERSION = "1.0"
@@ -242,12 +243,7 @@ class Session:
         self.manifest_path = self.root / MANIFEST
         if not self.root.is_dir():
             raise SessionFormatError(f"{self.root}: not a session folder (does not exist or is not a folder)")
-        try:
-            self.manifest = json.loads(self.manifest_path.read_text())
-        except FileNotFoundError:
-            raise SessionFormatError(f"{self.manifest_path}: missing (not a session folder)") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise SessionFormatError(f"{self.manifest_path}: not valid JSON ({exc})") from None
+        self.manifest = read_json(self.manifest_path, error=SessionFormatError, missing=" (not a session folder)")
         validate_manifest(self.manifest, self.manifest_path)
         self.sensors = {sid: _sensor_info(sid, d, self.manifest_path) for sid, d in self.manifest["sensors"].items()}
         self._frames: dict[str, pd.DataFrame] = {}

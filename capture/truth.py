@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +27,7 @@ from capture.errors import CalibrationError, SessionFormatError
 from capture.session import decode_depth
 from data_manifests import schema_problem
 from depthbench.errors import UnsafePathError
-from depthbench.fsutil import safe_join, sha256_bytes
+from depthbench.fsutil import read_json, safe_join, sha256_bytes
 
 TRUTH_FORMAT = "depthbench.truth"
 TRUTH_COLUMNS = ("frame_number", "scene_time_us", "device_timestamp_us", "host_timestamp_us", "host_jitter_us",
@@ -144,12 +143,7 @@ def read_truth(session_root: str | os.PathLike) -> Truth:
     missing field, bad table)."""
     root = Path(session_root) / "truth"
     path = root / "truth.json"
-    try:
-        info = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise SessionFormatError(f"{path}: missing (not a simulated session with ground truth)") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SessionFormatError(f"{path}: not valid JSON ({exc})") from None
+    info = read_json(path, error=SessionFormatError, missing=" (not a simulated session with ground truth)")
     _check_info(info, path)
     tables = {}
     for sensor, s in info["sensors"].items():

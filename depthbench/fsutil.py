@@ -90,6 +90,18 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
         raise
 
 
+def read_json(path: str | os.PathLike, *, error: type[Exception], missing: str, invalid_note: str = ""):
+    """Parse the JSON file ``path``; raise ``error`` with one line naming it when it is missing
+    (``"PATH: missing ..."`` with the ``missing`` explanation) or not JSON (plus ``invalid_note``)."""
+    path = Path(path)
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise error(f"{path}: missing{missing}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: not valid JSON ({exc}){invalid_note}") from None
+
+
 def check_output_free(path: str | os.PathLike, *, force: bool, what: str = "output") -> None:
     """Raise :class:`OutputExistsError` if ``path`` exists (a non-empty folder or a file) and not ``force``."""
     path = Path(path)

@@ -26,7 +26,7 @@ import numpy as np
 
 from capture.session import decode_depth, encode_depth
 from depthbench.errors import UnsafePathError
-from depthbench.fsutil import atomic_write_json, safe_join, sha256_bytes, staged_directory
+from depthbench.fsutil import atomic_write_json, read_json, safe_join, sha256_bytes, staged_directory
 from methods.base import Denoiser
 from methods.errors import MethodError
 
@@ -93,12 +93,7 @@ class DenoisedOutput:
     def __init__(self, root: str | os.PathLike) -> None:
         self.root = Path(root)
         path = self.root / MANIFEST
-        try:
-            self.meta = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise MethodError(f"{path}: missing (not a denoised output)") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise MethodError(f"{path}: not valid JSON ({exc})") from None
+        self.meta = read_json(path, error=MethodError, missing=" (not a denoised output)")
         if not isinstance(self.meta, dict) or self.meta.get("format") != FORMAT:
             raise MethodError(f"{path}: 'format' must be {FORMAT!r}")
         if str(self.meta.get("format_version", "")).split(".")[0] != FORMAT_VERSION.split(".")[0]:

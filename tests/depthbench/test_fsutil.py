@@ -75,3 +75,19 @@ def test_published_outputs_follow_the_umask_not_tempfile_privacy(tmp_path):
     assert (tmp_path / "f.txt").stat().st_mode & 0o777 == 0o644
     assert (tmp_path / "g.bin").stat().st_mode & 0o777 == 0o644
     assert (tmp_path / "d").stat().st_mode & 0o777 == 0o755
+
+
+def test_read_json_names_the_file_and_the_problem(tmp_path):
+    from depthbench.errors import DepthbenchError
+    from depthbench.fsutil import read_json
+
+    class Oops(DepthbenchError):
+        pass
+
+    with pytest.raises(Oops, match=r"m\.json: missing \(not here\)$"):
+        read_json(tmp_path / "m.json", error=Oops, missing=" (not here)")
+    (tmp_path / "m.json").write_text("{bad")
+    with pytest.raises(Oops, match=r"m\.json: not valid JSON \(.*\); no luck$"):
+        read_json(tmp_path / "m.json", error=Oops, missing="", invalid_note="; no luck")
+    (tmp_path / "m.json").write_text('{"a": 1}')
+    assert read_json(tmp_path / "m.json", error=Oops, missing="") == {"a": 1}

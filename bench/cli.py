@@ -99,6 +99,10 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing output")
     p.set_defaults(func=_import_ddrnet)
 
+    from bench.diagnose.cli import add_parser as add_diagnose  # issue 13: sensor error model
+
+    add_diagnose(sub)
+
 
 def _run(args) -> int:
     from bench.metrics import MetricConfig

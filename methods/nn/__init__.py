@@ -1,0 +1,1 @@
+"""Building blocks shared by the learned methods (pure torch, no I/O)."""

@@ -16,21 +16,13 @@ import numpy as np
 import pandas as pd
 
 from align.dataset import AlignedDataset
-from bench.errors import BenchError
+from bench.errors import BenchError, MethodOutputError, MethodRunError  # noqa: F401 (re-exported)
 from bench.metrics import BINNED, UNITS, MetricConfig, fit_reference_planes, frame_metrics
 from bench.results import SCHEMA_VERSION
 from methods.base import Denoiser
 from methods.errors import MethodError
 
 log = logging.getLogger(__name__)
-
-
-class MethodOutputError(BenchError):
-    """A method returned something that is not a depth image of the input's size."""
-
-
-class MethodRunError(BenchError):
-    """A method refused a frame (its own one-line error, with the dataset and frame added)."""
 
 
 class HQSensor:

@@ -57,7 +57,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import cKDTree
 
-from bench.errors import BenchError
+from bench.errors import MetricInputError  # noqa: F401 (re-exported)
 from capture.camera import Intrinsics
 
 #: Frame-level metrics in the results table, with their units.
@@ -74,10 +74,6 @@ PLANE_FIT_METHODS = ("auto", "grid", "kdtree")
 _GRID_CAP = 8          # widest pixel window (Chebyshev radius) the grid search visits before the KD-tree fallback
 _SENTINEL = 1.0e6      # invalid pixels sit at distinct far-away positions (1e6 m apart), never within any radius
 _STRIP_ELEMENTS = 16384  # elements per row strip of the grid search (a few arrays of this size stay in L2 cache)
-
-
-class MetricInputError(BenchError):
-    """Arrays given to a metric do not fit together (shapes, intrinsics, parameters)."""
 
 
 @dataclass(frozen=True)

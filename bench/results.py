@@ -25,7 +25,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from bench.errors import BenchError
+from bench.errors import BenchError, ResultsFormatError, SchemaVersionError  # noqa: F401 (re-exported)
 from data_manifests import schema_problem
 from depthbench.fsutil import atomic_output, atomic_write_json, read_json
 
@@ -55,14 +55,6 @@ SCHEMA = pa.schema([
 ])
 COLUMNS = tuple(SCHEMA.names)
 _META = {b"depthbench.format": FORMAT.encode(), b"depthbench.schema_version": str(SCHEMA_VERSION).encode()}
-
-
-class ResultsFormatError(BenchError):
-    """A results folder or table that this version cannot read."""
-
-
-class SchemaVersionError(ResultsFormatError):
-    """A results table or folder written with another schema version."""
 
 
 def short(text: str) -> str:

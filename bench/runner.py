@@ -49,7 +49,7 @@ from tqdm import tqdm
 from align.dataset import AlignedDataset
 from bench import results as R
 from bench.compute import FrameOutput, FrameTask, HQSensor, compute_frame, preview_inputs
-from bench.errors import BenchError
+from bench.errors import BenchError, DatasetError, EmptyReferenceError  # noqa: F401 (re-exported)
 from bench.metrics import MetricConfig
 from depthbench.errors import OutputExistsError
 from depthbench.fsutil import publish_directory, staging_dir_for
@@ -60,14 +60,6 @@ log = logging.getLogger(__name__)
 
 EXECUTORS = ("process", "dask")
 #: Short names of the seed report (Table I) for the registered filters.
-
-
-class EmptyReferenceError(BenchError):
-    """A dataset has no valid reference pixel (inside its ROI) in any frame: nothing to score against."""
-
-
-class DatasetError(BenchError):
-    """A ``--data`` path that is not (a folder of) aligned datasets, or two datasets with one name."""
 
 
 @dataclass

@@ -498,11 +498,11 @@ def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, fo
     is then closed readable with what was written.
     """
     if seconds is not None and not seconds > 0:
-        raise RecordingError(f"--seconds must be positive, got {seconds}")
+        raise RecordingError(f"recording length seconds={seconds}: must be positive")
     if not buffer_s > 0:
-        raise RecordingError(f"--buffer must be positive, got {buffer_s}")
+        raise RecordingError(f"write-queue length buffer_s={buffer_s}: must be positive (seconds of frames)")
     if writers is not None and writers < 1:
-        raise RecordingError(f"--writers must be at least 1, got {writers}")
+        raise RecordingError(f"encoder threads writers={writers}: must be at least 1")
     rec = _Recorder(rig, Path(out), seconds=seconds, force=force, writers=writers or default_writers(),
                     buffer_s=buffer_s, fsync=fsync, progress=progress, progress_every_s=progress_every_s,
                     adaptive=adaptive)

@@ -55,7 +55,7 @@ class Rig:
         for s in self.sensors:
             if s.id == sensor_id:
                 return s
-        raise KeyError(sensor_id)
+        raise RigError(f"{self.path or 'rig'}: no sensor {sensor_id!r} (sensors: {', '.join(s.id for s in self.sensors)})")
 
 
 def load_rig(path: str | os.PathLike) -> Rig:

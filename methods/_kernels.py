@@ -37,6 +37,8 @@ from llvmlite import ir
 from numba import njit, prange, types
 from numba.extending import intrinsic
 
+from methods.errors import MethodError
+
 # OpenMP first: probing TBB first prints a warning where an old libtbb is on the path (open3d ships one)
 if "NUMBA_THREADING_LAYER" not in os.environ and "NUMBA_THREADING_LAYER_PRIORITY" not in os.environ:
     numba.config.THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
@@ -238,7 +240,7 @@ def joint_mean(value: np.ndarray, guide: np.ndarray, coef: np.ndarray | float, *
     elif guide.ndim == 3 and guide.shape[0] == 3:
         _joint_mean_3(gc, gn, vn, ref, coef, dy, dx, s, r, out)
     else:  # pragma: no cover - callers pass (H, W) or (3, H, W)
-        raise ValueError(f"guide must be (H, W) or (3, H, W), got {guide.shape}")
+        raise MethodError(f"guide must be (H, W) or (3, H, W), got {guide.shape}")
     return out
 
 

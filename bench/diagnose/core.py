@@ -146,41 +146,49 @@ def diagnose(sensors: list[SensorFrames], *, source: str = "") -> DiagnoseResult
     return DiagnoseResult(source, {d.sensor: diagnose_sensor(d) for d in sensors})
 
 
-def _halves(data: SensorFrames, n: int) -> list[np.ndarray]:
-    """Two disjoint halves: frames by parity when there are 2+ frames, else 32-px block columns."""
+def _halves(n: int, shape: tuple[int, int], block: int = 32) -> list[np.ndarray]:
+    """Two disjoint halves as masks ``(n, H, W)``: frames by parity when there are 2+ frames,
+    else alternate columns of ``block``-pixel blocks of the one frame."""
     if n >= 2:
-        return [np.arange(n) % 2 == 0, np.arange(n) % 2 == 1]
-    return []
+        return [np.broadcast_to((np.arange(n) % 2 == k)[:, None, None], (n,) + shape) for k in (0, 1)]
+    cols = (np.arange(shape[1]) // block) % 2 == 0
+    return [np.broadcast_to(cols[None, None, :] == k, (n,) + shape) for k in (True, False)]
 
 
-def diagnose_sensor(data: SensorFrames) -> SensorDiagnosis:
-    """Diagnose one sensor (see the module docstring)."""
+def _masked(a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    return np.where(m, a, np.nan)
+
+
+def diagnose_sensor(data: SensorFrames, *, depth_edges: np.ndarray | None = None) -> SensorDiagnosis:
+    """Diagnose one sensor (see the module docstring); ``depth_edges``: the depth bins (metres;
+    None: 12 bins over the 0.5-99.5 % range of the reference depths)."""
     K = data.intrinsics
     rays_xy = K.ray_grid()[..., :2].astype(np.float32)
     refs, planes = references(data, rays_xy)
     resid = [(z - r) for z, r in zip(data.depth, refs)]
     zref = np.stack(refs)
     res = np.stack(resid)
-    edges = _depth_edges(np.where(np.isfinite(res), zref, np.nan))
+    edges = _depth_edges(np.where(np.isfinite(res), zref, np.nan)) if depth_edges is None else depth_edges
     # far outliers (e.g. the D435's 46 m pixels) are reported, then kept out of the noise statistics
     sig0 = S.robust_sigma(res[np.isfinite(res)])
     outlier = np.isfinite(res) & (np.abs(res) > max(OUTLIER_SIGMAS * sig0, 0.05))
     outlier_fraction = float(outlier.sum() / max(np.isfinite(res).sum(), 1))
     res_c = np.where(outlier, np.nan, res)
     # spatial correlation first: it sets the effective number of samples per pixel
+    halves = _halves(len(res_c), res_c.shape[1:])
     rho_frames = [S.autocorrelation(r, LAGS) for r in res_c]
     rho, pairs = _pool_rho(rho_frames)
-    corr = _correlation_selection(rho, pairs, rho_frames, _halves(data, len(res_c)))
+    corr = _correlation_selection(rho, pairs, [[S.autocorrelation(r, LAGS) for r in _masked(res_c, h)] for h in halves])
     s_px = corr.best.params.get("s_px", 0.0) if corr.chosen == "gaussian" else 0.0
     area = max(1.0, 4 * np.pi * s_px ** 2)
     sigma = S.binned(zref, res_c, edges, area_px=area)
-    halves = _halves(data, len(res_c))
-    split = tuple(_bin_triplet(S.binned(zref[h], res_c[h], edges, area_px=area), "sigma") for h in halves) or None
+    half_bins = [S.binned(_masked(zref, h), _masked(res_c, h), edges, area_px=area) for h in halves]
+    split = tuple(_bin_triplet(b, "sigma") for b in half_bins)
     sigma_sel = M.select("sigma", M.SIGMA_MODELS, _bin_triplet(sigma, "sigma"), split)
     bias = bias_sel = None
     if data.independent_reference:
         bias = sigma
-        bsplit = tuple(_bin_triplet(S.binned(zref[h], res_c[h], edges, area_px=area), "mean") for h in halves) or None
+        bsplit = tuple(_bin_triplet(b, "mean") for b in half_bins)
         bias_sel = M.select("bias", M.bias_models(data.fB), _bin_triplet(sigma, "mean"), bsplit)
     valid = np.isfinite(np.stack(data.depth))
     has_ref = np.isfinite(zref)
@@ -199,7 +207,7 @@ def diagnose_sensor(data: SensorFrames) -> SensorDiagnosis:
     diag = SensorDiagnosis(
         data.sensor, data.model, data.technology, data.reference_kind, len(data.depth), K.shape, sigma, sigma_sel,
         bias, bias_sel, fill_depth, fill_lum, fill_tex, float(valid[has_ref].mean()) if has_ref.any() else float("nan"),
-        rho, corr, S.position_bias(np.nanmean(np.where(np.isfinite(res_c), res_c, np.nan), axis=0)
+        rho, corr, S.position_bias(_nanmean0(res_c)
                                    if data.independent_reference else res_c[0]),
         edge, steps, outlier_fraction, temporal, None, notes=list(data.notes))
     if any(b is not None for b in data.board):
@@ -222,14 +230,12 @@ def _pool_rho(rho_frames) -> tuple[np.ndarray, np.ndarray]:
     return rho, N.sum(axis=0)
 
 
-def _correlation_selection(rho, pairs, rho_frames, halves) -> M.Selection:
+def _correlation_selection(rho, pairs, half_frames) -> M.Selection:
     lags = np.asarray(LAGS, np.float64)
 
     def trip(r, n):
         return lags, r, np.maximum(0.02, 1 / np.sqrt(np.maximum(n, 1)))
-    split = None
-    if halves:
-        split = tuple(trip(*_pool_rho([rho_frames[i] for i in np.flatnonzero(h)])) for h in halves)
+    split = tuple(trip(*_pool_rho(h)) for h in half_frames)
     return M.select("correlation", M.CORRELATION_MODELS, trip(rho, pairs), split)
 
 
@@ -371,3 +377,11 @@ def derived_parameters(d: SensorDiagnosis, data: SensorFrames) -> dict:
         out["board_model"] = m["chosen"]
         out["board_params"] = m[m["chosen"]]["params"]
     return out
+
+
+def _nanmean0(a: np.ndarray) -> np.ndarray:
+    """Mean over frames ignoring NaN (NaN where no frame has a value, without a warning)."""
+    n = np.isfinite(a).sum(axis=0)
+    s = np.where(np.isfinite(a), a, 0.0).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, s / np.maximum(n, 1), np.nan)

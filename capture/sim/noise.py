@@ -15,12 +15,25 @@ Stereo LQ (RealSense D415-like), in disparity space:
   ``texture_window_px`` window < ``min_contrast``) surfaces, outside ``[min_depth_m,
   max_depth_m]``, and a random ``random_invalid_fraction`` of pixels.
 
+Effects found by ``depthbench bench diagnose`` on real captures (issue 13; all off by default, so
+the default sensors behave as before; the measured values are in ``sensor_profiles.json``):
+
+* ``noise_floor_m``: a depth-independent error added to the depth (same correlation as the
+  matching noise), so ``sigma_z = sqrt(noise_floor_m**2 + (z**2 subpixel / (f B))**2)``: the
+  D435 board's error at 0.67 m is 4 mm where ``z**2`` scaling from 1.5 m predicts 1.4 mm;
+* ``outlier_fraction``: that fraction of measured pixels reads a depth drawn uniformly in
+  ``[min_depth_m, max_depth_m]`` (the D435's pixels at up to 46 m);
+* ``depth_offset_m`` / ``disparity_offset_px``: a calibration error: the depth off by a constant,
+  or the disparity (``z = f B / (d + disparity_offset_px)``), which makes the error grow with depth.
+
 Time-of-flight HQ (Kinect v2 / Azure-like), in depth:
 
 * ``sigma(z) = sigma0_m + sigma_slope * max(z - z0_m, 0)`` (0.5 mm + 1 mm per metre beyond
   0.5 m, i.e. 0.1 % of the distance beyond 0.5 m), white;
 * flying (mixed) pixels: where the true depth jumps by more than ``flying_jump_m`` inside a
   3x3 window, a ``flying_fraction`` of the pixels take a random mix ``w z_near + (1-w) z_far``;
+* ``correlation_px`` (0 = white): the noise blurred by a Gaussian of that many pixels (unit variance kept);
+  ``outlier_fraction`` as for stereo;
 * no measurement where the returned amplitude ``albedo / z**2`` is below ``min_amplitude``
   (dark surfaces, far away) or outside ``[min_depth_m, max_depth_m]``.
 
@@ -51,6 +64,10 @@ class StereoNoise:
     random_invalid_fraction: float = 0.002
     min_depth_m: float = 0.3
     max_depth_m: float = 10.0
+    noise_floor_m: float = 0.0
+    outlier_fraction: float = 0.0
+    depth_offset_m: float = 0.0
+    disparity_offset_px: float = 0.0
     model: str = "stereo"
 
     def to_dict(self) -> dict:
@@ -80,6 +97,8 @@ class TofNoise:
     min_amplitude: float = 0.003
     min_depth_m: float = 0.5
     max_depth_m: float = 8.0
+    correlation_px: float = 0.0
+    outlier_fraction: float = 0.0
     model: str = "tof"
 
     def to_dict(self) -> dict:
@@ -177,15 +196,32 @@ def stereo_depth(z_true: np.ndarray, ray_x: np.ndarray, luminance: np.ndarray, *
     texture = (lum < noise.min_luminance) | (_local_std(lum, noise.texture_window_px) < noise.min_contrast)
     rand = rng.random(z_true.shape) < noise.random_invalid_fraction
     d = disp + np.float32(noise.subpixel_px) * correlated_normal(z_true.shape, noise.correlation_px, rng)
+    if noise.disparity_offset_px:
+        d = d + np.float32(noise.disparity_offset_px)
     step = noise.disparity_step_px
     d = np.round(d / step) * step if step > 0 else d
     with np.errstate(divide="ignore", invalid="ignore"):
         z = (fB / d).astype(np.float32)
+    z = _measured_extras(z, valid, noise, rng)
     rng_bad = valid & ~((d > 0) & (z >= noise.min_depth_m) & (z <= noise.max_depth_m))
     bad = ~valid | occl | edge | texture | rand | rng_bad
     z[bad] = np.nan
     return NoisyDepth(z, {"occlusion": occl, "edge": edge & valid, "texture": texture & valid, "range": rng_bad,
                           "random": rand & valid})
+
+
+def _measured_extras(z: np.ndarray, valid: np.ndarray, noise, rng: np.random.Generator) -> np.ndarray:
+    """The diagnosed effects on measured depth: floor noise, constant offset, far outliers (none
+    drawn when off, so that default sensors keep their random streams)."""
+    floor = getattr(noise, "noise_floor_m", 0.0)
+    if floor:
+        z = z + np.float32(floor) * correlated_normal(z.shape, getattr(noise, "correlation_px", 0.0), rng)
+    if getattr(noise, "depth_offset_m", 0.0):
+        z = z + np.float32(noise.depth_offset_m)
+    if noise.outlier_fraction:
+        out = valid & (rng.random(z.shape) < noise.outlier_fraction)
+        z = np.where(out, rng.uniform(noise.min_depth_m, noise.max_depth_m, z.shape), z)
+    return z.astype(np.float32)
 
 
 # ----------------------------------------------------------------------------- time of flight
@@ -207,7 +243,9 @@ def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: n
     w = rng.random(z_true.shape, dtype=np.float32)
     z_mixed = np.where(flying, w * z_near + (1 - w) * np.minimum(z_far, far / 2), zf)
     sigma = noise.sigma_z(z_mixed).astype(np.float32)
-    z = z_mixed + sigma * rng.standard_normal(z_true.shape, dtype=np.float32)
+    n = correlated_normal(z_true.shape, noise.correlation_px, rng) if noise.correlation_px else \
+        rng.standard_normal(z_true.shape, dtype=np.float32)
+    z = _measured_extras(z_mixed + sigma * n, valid, noise, rng)
     with np.errstate(divide="ignore", invalid="ignore"):
         dark = valid & (albedo / np.square(zf) < noise.min_amplitude)
     out_of_range = valid & ((z < noise.min_depth_m) | (z > noise.max_depth_m))

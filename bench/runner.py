@@ -53,7 +53,8 @@ from bench.errors import BenchError, DatasetError, EmptyReferenceError  # noqa: 
 from bench.metrics import MetricConfig
 from depthbench.errors import OutputExistsError
 from depthbench.fsutil import publish_directory, staging_dir_for
-from methods.base import Denoiser, available, get
+from methods.base import Denoiser
+from methods.registry import available, get
 from methods.errors import UnknownMethodError
 
 log = logging.getLogger(__name__)
@@ -95,8 +96,8 @@ def resolve_methods(methods: str | Sequence[str | Denoiser]) -> list[Denoiser]:
     """
     if isinstance(methods, str):
         names = [m.strip() for m in methods.split(",") if m.strip()]
-        if names == ["all"]:
-            return [cls() for cls in available().values()]
+        if names == ["all"]:   # every method that runs without arguments (a learned one needs its weights named)
+            return [cls() for cls in available().values() if not cls.needs_weights()]
         methods = names
     out: list[Denoiser] = []
     for m in methods:

@@ -26,7 +26,7 @@ import numpy as np
 
 from methods._defaults import swept
 from methods._kernels import joint_mean
-from methods.base import Denoiser, check_depth, check_flag, check_radius, check_sigma, register
+from methods.base import Denoiser, check_depth, check_flag, check_radius, check_sigma
 
 NAME = "bilateral"
 Z_REF_M = 2.0
@@ -102,7 +102,6 @@ def bilateral_filter(depth: np.ndarray, *, sigma_spatial: float | None = None, s
     return out
 
 
-@register
 class BilateralFilter(Denoiser):
     """Hole-aware bilateral filter on depth; see :func:`bilateral_filter`."""
 

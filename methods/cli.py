@@ -5,21 +5,17 @@
 
 ``run`` writes the denoised LQ depth in the session's on-disk convention (uint16 PNG in the
 dataset's depth unit, 0 = none) plus ``denoised.json`` (method key, version, parameters, dataset
-checksum); the format is described in :mod:`methods.output`.
+checksum); the format is described in :mod:`methods.output`. The library function behind ``run``
+is :func:`methods.run.denoise_dataset` (it says what happens to a frame a method cannot process).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
-import time
 
-from tqdm import tqdm
-
-from methods.base import available, get
 from methods.errors import MethodError
-from methods.output import DenoisedWriter
+from methods.registry import aliases_of, available, get
+from methods.run import denoise_dataset
 
 
 def register(subparsers) -> None:
@@ -39,7 +35,9 @@ def register(subparsers) -> None:
     p = sub.add_parser(
         "run", help="denoise the LQ depth of an aligned dataset",
         description="Run method NAME on every frame of an aligned dataset and write the denoised depth "
-                    "(uint16 PNG in the dataset's depth unit, 0 = none) and denoised.json to --out.",
+                    "(uint16 PNG in the dataset's depth unit, 0 = none) and denoised.json to --out. A frame without "
+                    "valid depth is written empty; a frame the method refuses stops the run with an error naming "
+                    "it, and nothing is written (the same rule as 'bench run').",
         epilog="Example: depthbench methods run bilateral --data A --out D --param sigma_color=0.02 "
                "--param depth_adaptive=true.  Parameter values: numbers, true/false, none, inf.")
     p.add_argument("name", help="method name (see 'depthbench methods list')")
@@ -96,54 +94,40 @@ def _fmt(value) -> str:
 
 
 # ----------------------------------------------------------------------------- commands
+def _listing(name: str, cls) -> dict:
+    """One method as ``methods list --json`` shows it."""
+    needs = "" if cls.needs_weights() else cls().needs.describe()
+    return {"name": name, "aliases": aliases_of(name), "version": cls.version, "description": cls.description,
+            "learned": cls.learned, "uses_color": cls.uses_color, "sequential": cls.sequential,
+            "needs": needs or "depth only", "params": [{"name": k, "default": v, "help": cls.param_help.get(k, "")}
+                                                       for k, v in cls.defaults.items()]}
+
+
 def run_list(args) -> int:
-    methods = available()
+    entries = [_listing(n, c) for n, c in available().items()]
     if args.json:
-        out = [{"name": n, "version": c.version, "description": c.description, "learned": c.learned,
-                "uses_color": c.uses_color, "params": [{"name": k, "default": v, "help": c.param_help.get(k, "")}
-                                                        for k, v in c.defaults.items()]}
-               for n, c in methods.items()]
-        print(json.dumps(out, indent=2))
+        print(json.dumps(entries, indent=2))
         return 0
-    for n, c in methods.items():
-        tags = [t for t, on in (("learned", c.learned), ("uses colour", c.uses_color)) if on]
-        print(f"{n}  (version {c.version}{', ' + ', '.join(tags) if tags else ''})")
-        print(f"    {c.description}")
-        if not c.defaults:
+    for e in entries:
+        tags = [f"alias {a}" for a in e["aliases"]] + [t for t, on in (
+            ("learned", e["learned"]), ("uses colour", e["uses_color"]), ("sequence", e["sequential"])) if on]
+        print(f"{e['name']}  (version {e['version']}{', ' + ', '.join(tags) if tags else ''})")
+        print(f"    {e['description']}")
+        print(f"    needs: {e['needs']}")
+        if not e["params"]:
             print("    no parameters")
-        width = max((len(k) for k in c.defaults), default=0)
-        for k, v in c.defaults.items():
-            print(f"    {k:<{width}} = {_fmt(v):<8} {c.param_help.get(k, '')}")
+        width = max((len(p["name"]) for p in e["params"]), default=0)
+        for p in e["params"]:
+            print(f"    {p['name']:<{width}} = {_fmt(p['default']):<8} {p['help']}")
         print()
     print("Run one with: depthbench methods run NAME --data ALIGNED --out DIR [--param K=V ...]")
     return 0
 
 
 def run_run(args) -> int:
-    from align.dataset import AlignedDataset   # methods may import align (geometry, data); bench may not be imported
-
     method = get(args.name, **parse_params(args.param))
-    data = AlignedDataset(args.data)
-    if len(data) == 0:
-        raise MethodError(f"{args.data}: the aligned dataset has no frames")
-    if method.uses_color and data.lq_color(0) is None:
-        raise MethodError(f"{method.name} needs the LQ colour image, and {args.data} has none")
-    started = time.perf_counter()
-    writer = DenoisedWriter(args.out, method, dataset_checksum=data.checksum, dataset_name=data.name,
-                            dataset_path=str(args.data), depth_unit_m=data.depth_unit_m, force=args.force)
-    try:
-        for i in tqdm(range(len(data)), desc=f"{method.name}", unit="frame", file=sys.stderr, leave=False,
-                      disable=True if args.no_progress else None):
-            depth = data.lq_depth(i)
-            color = data.lq_color(i) if method.uses_color else None
-            try:
-                out = method.denoise(depth, color, data.lq_intrinsics)
-            except MethodError as exc:
-                raise MethodError(f"{args.data}: frame {i}: {exc}") from None
-            writer.add(i, out)
-        root = writer.close(seconds=time.perf_counter() - started)
-    except BaseException as exc:
-        writer.abort(exc)
-        raise
-    print(f"{method.key}: {len(data)} frames -> {root}")
+    result = denoise_dataset(method, args.data, args.out, force=args.force,
+                             progress=False if args.no_progress else None)
+    empty = f" ({result.empty} without valid depth, written empty)" if result.empty else ""
+    print(f"{result.method_key}: {result.frames} frames{empty} -> {result.out}")
     return 0

@@ -8,3 +8,11 @@ class MethodError(DepthbenchError):
 
 class UnknownMethodError(MethodError):
     """A method name that is not registered."""
+
+
+class FrameRejectedError(MethodError):
+    """A method refused a frame (its own error, with the dataset, frame and method key added).
+
+    Wherever a method runs over a dataset (``methods run``, ``bench run``, the demo) the run stops
+    on it with this one-line error and publishes nothing; see :mod:`methods.run`.
+    """

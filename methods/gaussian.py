@@ -11,7 +11,7 @@ import numpy as np
 
 from methods._defaults import swept
 from methods._kernels import gaussian_mean
-from methods.base import Denoiser, check_depth, check_flag, check_radius, check_sigma, register
+from methods.base import Denoiser, check_depth, check_flag, check_radius, check_sigma
 
 NAME = "gaussian"
 
@@ -51,7 +51,6 @@ def gaussian_filter(depth: np.ndarray, *, sigma_spatial: float | None = None, ra
     return out
 
 
-@register
 class GaussianFilter(Denoiser):
     """Hole-aware normalised Gaussian; see :func:`gaussian_filter`."""
 

@@ -19,8 +19,8 @@ import numpy as np
 
 from methods._defaults import swept
 from methods._kernels import joint_mean
-from methods.base import (Denoiser, check_color, check_depth, check_flag, check_radius, check_sigma, guide_planes,
-                          register)
+from methods.base import (Denoiser, check_color, check_depth, check_flag, check_radius, check_sigma, guide_planes)
+
 from methods.errors import MethodError
 
 NAME = "joint_bilateral"
@@ -73,7 +73,6 @@ def joint_bilateral_filter(depth: np.ndarray, guide: np.ndarray, *, sigma_spatia
     return out
 
 
-@register
 class JointBilateralFilter(Denoiser):
     """Joint bilateral filter guided by the colour image; see :func:`joint_bilateral_filter`."""
 

@@ -30,8 +30,8 @@ import numpy as np
 
 from methods._defaults import swept
 from methods._kernels import gaussian_mean, joint_mean
-from methods.base import (Denoiser, check_depth, check_flag, check_iterations, check_radius, check_sigma,
-                          register)
+from methods.base import Denoiser, check_depth, check_flag, check_iterations, check_radius, check_sigma
+
 from methods.bilateral import Z_REF_M, range_coefficient
 
 NAME = "rolling_guidance"
@@ -93,7 +93,6 @@ def rolling_guidance_filter(depth: np.ndarray, *, sigma_spatial: float | None = 
     return J
 
 
-@register
 class RollingGuidanceFilter(Denoiser):
     """Rolling Guidance Filter of Zhang et al.; see :func:`rolling_guidance_filter`."""
 

@@ -132,7 +132,7 @@ def test_help_is_useful(main):
 
 
 def test_seed_report_aliases_name_the_same_methods():
-    from methods.base import get
+    from methods.registry import get
 
     assert get("bf").name == "bilateral" and get("jbf").name == "joint_bilateral" and get("rgf").name == "rolling_guidance"
     assert get("rgf", iterations=3).params["iterations"] == 3

@@ -1,8 +1,15 @@
-"""One benchmark task: one frame of one aligned dataset, every method that still needs it.
+"""One benchmark task: a run of consecutive frames of one aligned dataset, every method that still needs them.
 
-The task reads the frame once, fits the reference planes once per reference (HQ, and truth when the
-dataset is simulated), runs each method and scores it. It runs in whatever process the executor
-chose (this one, a local process pool, a Dask worker) and returns plain rows; it writes nothing.
+A task is a chunk of :func:`methods.run.plan_chunks`: one frame for frame methods (the usual
+case: every frame method of the run shares the task, so the frame is read and its reference planes
+are fitted once), a batch for batched methods, or a sequence chunk (with its warm-up frames) for
+sequence methods. The methods are fed through :class:`methods.run.FrameRunner`, the path
+``depthbench methods run`` takes, so a frame is treated the same way in both (an empty frame is
+scored as an all-NaN prediction, a frame lacking colour for a colour method gets NaN metrics, a
+frame a method refuses stops the run with :class:`methods.errors.FrameRejectedError`).
+
+The task runs in whatever process the executor chose (this one, a local process pool, a Dask
+worker) and returns plain rows per (method key, frame); it writes nothing.
 """
 from __future__ import annotations
 
@@ -15,12 +22,12 @@ from functools import lru_cache
 import numpy as np
 import pandas as pd
 
-from align.dataset import AlignedDataset
+from align.dataset import AlignedDataset, AlignedFrame
 from bench.errors import BenchError, MethodOutputError, MethodRunError  # noqa: F401 (re-exported)
 from bench.metrics import BINNED, UNITS, MetricConfig, fit_reference_planes, frame_metrics
 from bench.results import SCHEMA_VERSION
-from methods.base import Denoiser
-from methods.errors import MethodError
+from methods.base import FrameInput, MethodNeeds
+from methods.run import DenoisedFrame, FrameRunner, read_input
 
 log = logging.getLogger(__name__)
 
@@ -38,29 +45,46 @@ class HQSensor:
     learned = False
     description = "the HQ reference depth (warped onto the LQ image) against the simulator's truth"
     key = "hq_sensor@1()"
+    needs = MethodNeeds()
+
+    def describe(self) -> dict:
+        return {"name": self.name, "version": self.version, "key": self.key, "learned": False,
+                "description": self.description}
 
 
 @dataclass(frozen=True)
 class FrameTask:
-    """What a worker needs for one frame. ``methods`` are Denoiser instances (or :class:`HQSensor`)."""
+    """What a worker needs for one chunk of one dataset.
+
+    ``methods`` are Denoiser instances (or :class:`HQSensor`) sharing one chunk plan; ``frames`` are
+    scored in order after the ``warmup`` frames are fed (sequence methods); ``cached`` holds the
+    ``(method key, frame)`` results already in the cache (computed for the state, not scored);
+    ``preview`` is the frame whose denoised depth is returned for the qualitative figure.
+    """
 
     dataset_root: str
     dataset_checksum: str
     dataset_name: str
     sequence: str
-    frame: int
+    frames: tuple[int, ...]
     methods: tuple
     config: MetricConfig
-    preview: bool = False
+    warmup: tuple[int, ...] = ()
+    cached: frozenset = frozenset()
+    preview: int | None = None
     threads: int | None = None     # CPU threads this task may use (metrics, numba kernels); None: library defaults
+
+    @property
+    def todo(self) -> list[tuple[str, int]]:
+        """The (method key, frame) results this task computes."""
+        return [(m.key, i) for i in self.frames for m in self.methods if (m.key, i) not in self.cached]
 
 
 @dataclass
 class FrameOutput:
-    """Rows per method key, and (for the preview frame) the denoised depth per method key."""
+    """Rows per (method key, frame), and the preview frame's denoised depth per method key."""
 
-    frame: int
-    rows: dict[str, pd.DataFrame] = field(default_factory=dict)
+    rows: dict[tuple[str, int], pd.DataFrame] = field(default_factory=dict)
     previews: dict[str, np.ndarray] = field(default_factory=dict)
 
 
@@ -90,26 +114,9 @@ def _limit_threads(threads: int | None) -> int:
     return max(1, threads)
 
 
-def _denoise(method: Denoiser, frame, K, task: FrameTask) -> np.ndarray | None:
-    """The method's output, or None when the frame lacks an input the method needs (colour)."""
-    lq = frame.lq_depth
-    if getattr(method, "uses_color", False) and frame.lq_color is None:
-        return None
-    if not np.isfinite(lq).any():     # nothing to denoise: the method leaves every pixel empty
-        return np.full(lq.shape, np.nan, np.float32)
-    try:
-        out = method.denoise(lq, frame.lq_color, K)
-    except MethodError as exc:
-        raise MethodRunError(f"{method.key} on {task.dataset_root} frame {task.frame}: {exc}") from None
-    if not isinstance(out, np.ndarray) or out.shape != lq.shape:
-        raise MethodOutputError(f"method {method.key} returned {getattr(out, 'shape', type(out).__name__)} for a "
-                                f"{lq.shape} depth ({task.dataset_root}, frame {task.frame})")
-    return out.astype(np.float32, copy=False)
-
-
-def _rows(method, task: FrameTask, reference: str, metrics: dict, bins: list[dict]) -> list[tuple]:
+def _rows(method, task: FrameTask, frame: int, reference: str, metrics: dict, bins: list[dict]) -> list[tuple]:
     head = (SCHEMA_VERSION, method.name, str(method.version), method.key, task.dataset_name, task.dataset_checksum,
-            task.sequence, task.frame, reference)
+            task.sequence, frame, reference)
     rows = [head + (name, UNITS[name], np.nan, np.nan, float(metrics[name])) for name in UNITS]
     for b in bins:
         rows += [head + (name, UNITS[name], b["bin_lo_m"], b["bin_hi_m"], float(b[name])) for name in BINNED]
@@ -120,56 +127,99 @@ _COLUMNS = ("schema_version", "method", "method_version", "method_key", "dataset
             "frame", "reference", "metric", "unit", "bin_lo_m", "bin_hi_m", "value")
 
 
-def compute_frame(task: FrameTask) -> FrameOutput:
-    """Run and score every method of ``task`` on its frame.
+@dataclass
+class _Scoring:
+    """One frame held until every method's output for it is scored: the frame, its references and planes."""
 
-    Returns a :class:`FrameOutput`; raises :class:`BenchError` (or the method's own error) naming
-    the dataset and frame.
+    frame: AlignedFrame
+    refs: dict
+    planes: dict
+    waiting: int
+
+
+class _TaskScorer:
+    """Scores methods' outputs frame by frame into a :class:`FrameOutput`."""
+
+    def __init__(self, task: FrameTask, ds: AlignedDataset, threads: int) -> None:
+        self.task, self.K, self.threads = task, ds.lq_intrinsics, threads
+        self.out = FrameOutput()
+        self.held: dict[int, _Scoring] = {}
+
+    def hold(self, fr: AlignedFrame, waiting: int) -> _Scoring:
+        cfg = self.task.config
+        refs = {"hq": fr.reference}
+        if fr.truth is not None:
+            refs["truth"] = fr.truth
+        planes = {name: fit_reference_planes(ref, self.K, roi=fr.roi, radius_m=cfg.radius_m,
+                                             min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio,
+                                             threads=self.threads)
+                  for name, ref in refs.items()}
+        self.held[fr.index] = held = _Scoring(fr, refs, planes, waiting)
+        return held
+
+    def score(self, method, frame: int, pred: np.ndarray | None, refs: dict | None = None) -> None:
+        """Score ``pred`` (None: the frame lacks an input the method needs) against ``refs`` (default: all)."""
+        held = self.held[frame]
+        if (method.key, frame) not in self.task.cached:
+            if held.planes["hq"].index.size == 0:     # no reference: scored as an all-NaN prediction
+                pred = np.full(held.frame.lq_depth.shape, np.nan, np.float32)
+            rows = []
+            for name, ref in (held.refs if refs is None else refs).items():
+                rows += _rows(method, self.task, frame, name, *self._metrics(pred, ref, held, name))
+            df = pd.DataFrame.from_records(rows, columns=_COLUMNS)
+            self.out.rows[(method.key, frame)] = df.astype({"schema_version": "int32", "frame": "int64"})
+            if frame == self.task.preview:
+                shape = held.frame.lq_depth.shape
+                self.out.previews[method.key] = np.full(shape, np.nan, np.float32) if pred is None else \
+                    np.asarray(pred, np.float32)
+        held.waiting -= 1
+        if held.waiting == 0:
+            del self.held[frame]
+
+    def _metrics(self, pred, ref, held: _Scoring, name: str) -> tuple[dict, list]:
+        if pred is None:     # not applicable to this frame: every metric NaN, the reference still counted
+            metrics = {k: np.nan for k in UNITS}
+            metrics["n_reference"] = float(held.planes[name].index.size)
+            return metrics, []
+        return frame_metrics(pred, ref, self.K, roi=held.frame.roi, config=self.task.config,
+                             planes=held.planes[name], threads=self.threads)
+
+
+def compute_frame(task: FrameTask) -> FrameOutput:
+    """Run and score every method of ``task`` on its frames (in order, after its warm-up frames).
+
+    Returns a :class:`FrameOutput`; raises :class:`BenchError` or
+    :class:`methods.errors.FrameRejectedError` naming the dataset and frame.
     """
     threads = _limit_threads(task.threads)
     ds = _open(task.dataset_root, task.dataset_checksum)
-    fr = ds.frame(task.frame)
-    K = ds.lq_intrinsics
-    cfg = task.config
-    refs = {"hq": fr.reference}
-    if fr.truth is not None:
-        refs["truth"] = fr.truth
-    out = FrameOutput(task.frame)
+    scorer = _TaskScorer(task, ds, threads)
+    methods = [m for m in task.methods if not isinstance(m, HQSensor)]
+    hq_sensor = [m for m in task.methods if isinstance(m, HQSensor)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        planes = {name: fit_reference_planes(ref, K, roi=fr.roi, radius_m=cfg.radius_m,
-                                             min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio,
-                                             threads=threads)
-                  for name, ref in refs.items()}
-        hq_empty = planes["hq"].index.size == 0
-        for method in task.methods:
-            if isinstance(method, HQSensor):
-                if "truth" not in refs:
-                    continue
-                pred, scored = fr.reference, {"truth": refs["truth"]}
-            else:
-                scored = refs
-                if hq_empty:   # no reference: nothing to score, no need to run the method
-                    pred = np.full(fr.lq_depth.shape, np.nan, np.float32)
+        runners = {m.key: FrameRunner(m, where=task.dataset_root, warmup=len(task.warmup)) for m in methods}
+        for i in task.warmup:
+            for m in methods:
+                runners[m.key].push(read_input(ds, i, m))
+        for i in task.frames:
+            fr = ds.frame(i)
+            held = scorer.hold(fr, waiting=len(methods) + len(hq_sensor))
+            for m in hq_sensor:     # the reference itself, against the truth where the frame has one
+                if "truth" in held.refs:
+                    scorer.score(m, i, fr.reference, refs={"truth": held.refs["truth"]})
                 else:
-                    pred = _denoise(method, fr, K, task)
-            rows = []
-            for name, ref in scored.items():
-                if pred is None:     # not applicable to this frame: every metric NaN, the reference still counted
-                    metrics = {k: np.nan for k in UNITS}
-                    metrics["n_reference"] = float(planes[name].index.size)
-                    bins = []
-                else:
-                    metrics, bins = frame_metrics(pred, ref, K, roi=fr.roi, config=cfg, planes=planes[name],
-                                                  threads=threads)
-                rows += _rows(method, task, name, metrics, bins)
-            if pred is None:
-                pred = np.full(fr.lq_depth.shape, np.nan, np.float32)
-            df = pd.DataFrame.from_records(rows, columns=_COLUMNS)
-            out.rows[method.key] = df.astype({"schema_version": "int32", "frame": "int64"})
-            if task.preview:
-                out.previews[method.key] = np.asarray(pred, np.float32)
-    return out
+                    held.waiting -= 1
+            for m in methods:
+                _score_all(scorer, m, runners[m.key].push(FrameInput(i, fr.lq_depth, fr.lq_color, ds.lq_intrinsics)))
+        for m in methods:
+            _score_all(scorer, m, runners[m.key].finish())
+    return scorer.out
+
+
+def _score_all(scorer: _TaskScorer, method, done: list[DenoisedFrame]) -> None:
+    for d in done:
+        scorer.score(method, d.index, d.depth)
 
 
 def preview_inputs(ds: AlignedDataset, index: int) -> dict[str, np.ndarray]:

@@ -2,11 +2,16 @@
 
 :func:`run_benchmark` is the one entry point (``depthbench bench run`` is a thin parser around it).
 
-Work unit: one frame of one dataset (read once, reference planes fitted once), with every method
-whose rows for that frame are not cached yet. A (method key, dataset checksum, frame) is computed
-once: its rows are written to ``RESULTS/cache/`` as soon as the task finishes, and any later run
-into the same folder reuses them; a method whose key changes (new version or parameters) is
-recomputed, the others are not.
+Work unit (:class:`bench.compute.FrameTask`): one chunk of :func:`methods.run.plan_chunks` of one
+dataset with every method that shares that chunk plan and lacks a cached result in it. For frame
+methods (the filters) that is one frame (read once, reference planes fitted once) with all of
+them; a sequence method gets its sequence (or its chunks with warm-up frames) in frame order; a
+batched method its batches. A (method key, dataset checksum, frame) is computed once: its rows
+are written to ``RESULTS/cache/`` as soon as the task finishes, and any later run into the same
+folder reuses them; a method whose key changes (new version, parameters or weights file) is
+recomputed, the others are not. A frame a method refuses stops the run
+(:class:`methods.errors.FrameRejectedError`, the rule of :mod:`methods.run`): nothing is published,
+the cache keeps what was computed.
 
 The results folder (``--out``):
 
@@ -33,11 +38,9 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import logging
-import multiprocessing
 import os
 import shutil
 import sys
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Sequence
@@ -48,19 +51,18 @@ from tqdm import tqdm
 
 from align.dataset import AlignedDataset
 from bench import results as R
-from bench.compute import FrameOutput, FrameTask, HQSensor, compute_frame, preview_inputs
+from bench.compute import FrameOutput, FrameTask, HQSensor, preview_inputs
 from bench.errors import BenchError, DatasetError, EmptyReferenceError  # noqa: F401 (re-exported)
+from bench.executors import EXECUTORS, ExecutorSpec  # noqa: F401 (re-exported)
 from bench.metrics import MetricConfig
 from depthbench.errors import OutputExistsError
 from depthbench.fsutil import publish_directory, staging_dir_for
 from methods.base import Denoiser
-from methods.registry import available, get
 from methods.errors import UnknownMethodError
+from methods.registry import available, get
+from methods.run import plan_chunks
 
 log = logging.getLogger(__name__)
-
-EXECUTORS = ("process", "dask")
-#: Short names of the seed report (Table I) for the registered filters.
 
 
 @dataclass
@@ -179,100 +181,48 @@ def _prepare_out(out: Path, config: MetricConfig, force: bool) -> tuple[Path, di
     return staging_dir_for(out), None, True
 
 
-# ----------------------------------------------------------------------------------- executors
-def _share(processes: int) -> int:
-    """CPU threads each of ``processes`` local worker processes may use."""
-    return max(1, (os.cpu_count() or 1) // max(1, processes))
-
-
-class _Serial:
-    name = "serial"
-    threads = _share(1)
-
-    def run(self, tasks, on_done):
-        for t in tasks:
-            on_done(t, compute_frame(t))
-
-
-class _Processes:
-    def __init__(self, jobs: int) -> None:
-        self.jobs = jobs
-        self.name = f"process x{jobs}"
-        self.threads = _share(jobs)
-
-    def run(self, tasks, on_done):
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["bench.compute"])
-        ex = ProcessPoolExecutor(max_workers=self.jobs, mp_context=ctx)
-        try:
-            pending = {ex.submit(compute_frame, t): t for t in tasks}
-            while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for f in done:
-                    on_done(pending.pop(f), f.result())
-        finally:
-            ex.shutdown(wait=True, cancel_futures=True)
-
-
-class _Dask:
-    def __init__(self, workers: int | None, scheduler: str | None) -> None:
-        self.workers, self.scheduler = workers, scheduler
-        self.name = f"dask {scheduler}" if scheduler else f"dask LocalCluster x{workers}"
-        self.threads = None if scheduler else _share(workers)   # a remote cluster's machines are not ours to size
-
-    def run(self, tasks, on_done):
-        from distributed import Client, LocalCluster, as_completed
-
-        cluster = None
-        try:
-            if self.scheduler:
-                try:
-                    client = Client(self.scheduler, timeout="10s")
-                except (OSError, TimeoutError) as exc:
-                    raise BenchError(f"--scheduler {self.scheduler}: cannot connect ({exc})") from None
-            else:
-                import dask
-
-                # Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which sends every large
-                # numpy temporary through mmap/munmap: the metrics then take 2.5x the CPU. Not here.
-                env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
-                env.pop("MALLOC_TRIM_THRESHOLD_", None)
-                with dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
-                    cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=logging.ERROR)
-                client = Client(cluster)
-        except ValueError as exc:
-            raise BenchError(f"--scheduler {self.scheduler}: {exc}") from None
-        try:
-            futures = {client.submit(compute_frame, t, key=f"bench-{t.dataset_checksum[:16]}-{t.frame:06d}-"
-                                     f"{R.short('|'.join(m.key for m in t.methods))}", pure=False): t for t in tasks}
-            try:
-                for f in as_completed(list(futures)):
-                    on_done(futures[f], f.result())
-            finally:
-                client.cancel(list(futures))
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-
-
-def _executor(executor: str, jobs: int | None, workers: int | None, scheduler: str | None, n_tasks: int):
-    if executor not in EXECUTORS:
-        raise BenchError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
-    if workers is not None and workers < 1:
-        raise BenchError(f"--workers must be at least 1, got {workers}")
-    if jobs is not None and jobs < 1:
-        raise BenchError(f"--jobs must be at least 1, got {jobs}")
-    if executor == "dask" or workers is not None or scheduler is not None:
-        if workers is not None and scheduler is not None:
-            raise BenchError("give --workers (a local Dask cluster) or --scheduler (an existing one), not both")
-        return _Dask(workers or os.cpu_count() or 1, scheduler)
-    jobs = min(jobs or os.cpu_count() or 1, n_tasks)
-    return _Serial() if jobs <= 1 else _Processes(jobs)
-
-
 # ----------------------------------------------------------------------------------- the run
+@dataclass
+class RunPlan:
+    """One benchmark run, decided before any method runs.
+
+    Attributes:
+        work: the folder being written (``out`` itself when continuing it, else a staging sibling).
+        out: the results folder the user named.
+        datasets, methods: what is scored (``methods`` includes :class:`HQSensor` for simulated data).
+        config: metric parameters.
+        executor: where tasks run.
+        prev_meta: the manifest of the results folder being continued (None: a new folder).
+        started: ISO time the run started.
+        progress: tqdm bar on stderr (None: only when stderr is a terminal).
+        threads_per_task: CPU threads a task may use (None: the executor's share).
+    """
+
+    work: Path
+    out: Path
+    datasets: list[AlignedDataset]
+    methods: list
+    config: MetricConfig
+    executor: ExecutorSpec
+    prev_meta: dict | None = None
+    started: str = ""
+    progress: bool | None = None
+    threads_per_task: int | None = None
+
+
+@dataclass
+class _Schedule:
+    """The tasks of a run and the results it needs: (method, dataset, frame) triples, how many are cached."""
+
+    tasks: list[FrameTask] = field(default_factory=list)
+    needed: list[tuple] = field(default_factory=list)
+    reused: int = 0
+
+    @property
+    def n_todo(self) -> int:
+        return sum(len(t.todo) for t in self.tasks)
+
+
 def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], methods: str | Sequence[str | Denoiser],
                   out: str | os.PathLike, *, config: MetricConfig = MetricConfig(), executor: str = "process",
                   jobs: int | None = None, workers: int | None = None, scheduler: str | None = None,
@@ -282,7 +232,9 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
 
     Args:
         datasets: aligned dataset folders (a folder of aligned datasets stands for all of them).
-        methods: ``"all"``, ``"raw,bf"``, or a list of names / :class:`methods.base.Denoiser` instances.
+        methods: ``"all"``, ``"raw,bf"``, or a list of names / :class:`methods.base.Denoiser` instances
+            (``"all"``: every registered method that runs without arguments; a learned method needs
+            its weights, so pass it as an instance).
         out: the results folder (see the module docstring for how an existing one is continued).
         config: metric parameters (part of the folder's identity).
         executor: ``"process"`` (local processes) or ``"dask"``; ``workers``/``scheduler`` imply Dask.
@@ -300,19 +252,20 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
         A :class:`BenchResult`.
 
     Raises:
-        BenchError (and the stage errors it wraps): one line naming the argument or file.
+        BenchError (and the stage errors it wraps, e.g. :class:`methods.errors.FrameRejectedError`
+        for a frame a method refuses): one line naming the argument or file.
     """
     out = Path(out)
-    _executor(executor, jobs, workers, scheduler, 1)     # argument errors before anything is read or written
+    spec = ExecutorSpec(executor=executor, jobs=jobs, workers=workers, scheduler=scheduler).check()
     method_list = resolve_methods(methods)
     ds_list = resolve_datasets(datasets)
     if any(ds.simulated for ds in ds_list):
         method_list = method_list + [HQSensor()]
     work, prev_meta, staged = _prepare_out(out, config, force)
-    started = _now()
+    plan = RunPlan(work=work, out=out, datasets=ds_list, methods=method_list, config=config, executor=spec,
+                   prev_meta=prev_meta, started=_now(), progress=progress, threads_per_task=threads_per_task)
     try:
-        result = _run(work, out, ds_list, method_list, config, prev_meta, started,
-                      executor, jobs, workers, scheduler, progress, threads_per_task)
+        result = _run(plan)
         if report:
             from bench.report import write_report
             result.report = write_report(work, table=result.table)
@@ -328,86 +281,102 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
         raise
 
 
-def _run(work: Path, out: Path, ds_list, method_list, config, prev_meta, started, executor, jobs, workers,
-         scheduler, progress, threads_per_task=None) -> BenchResult:
-    # plan: per (dataset, frame) the methods without a cache part
-    tasks: list[FrameTask] = []
-    needed: list[tuple[Denoiser, AlignedDataset, int]] = []
-    reused = 0
-    for ds in ds_list:
+def _chunk_signature(method) -> tuple:
+    """Methods with equal signatures are fed the same chunks and share tasks."""
+    n = method.needs
+    return (n.sequence, n.chunk_frames, n.warmup_frames, n.batch_size)
+
+
+def _cached(plan: RunPlan, method, ds: AlignedDataset, frame: int, preview: int) -> bool:
+    return R.cache_part(plan.work, method.key, ds.checksum, frame).exists() and (
+        frame != preview or R.preview_path(plan.work, ds.checksum, method.key).exists())
+
+
+def _schedule(plan: RunPlan) -> _Schedule:
+    """Per dataset and chunk (:func:`methods.run.plan_chunks`), a task with every method that lacks a cached result."""
+    sched = _Schedule()
+    for ds in plan.datasets:
         mid = preview_frame(ds)
-        for i in range(len(ds)):
-            todo = []
-            for m in method_list:
-                if isinstance(m, HQSensor) and not ds.simulated:
-                    continue
-                needed.append((m, ds, i))
-                if R.cache_part(work, m.key, ds.checksum, i).exists() and (
-                        i != mid or R.preview_path(work, ds.checksum, m.key).exists()):
-                    reused += 1
-                else:
-                    todo.append(m)
-            if todo:
-                tasks.append(FrameTask(str(ds.root.resolve()), ds.checksum, ds.name, ds.sequence, i, tuple(todo),
-                                       config, preview=(i == mid)))
-    n_todo = sum(len(t.methods) for t in tasks)
-    ex = _executor(executor, jobs, workers, scheduler, max(len(tasks), 1))
-    threads = threads_per_task or ex.threads
+        groups: dict[tuple, list] = {}
+        for m in plan.methods:
+            if not isinstance(m, HQSensor) or ds.simulated:
+                groups.setdefault(_chunk_signature(m), []).append(m)
+        for group in groups.values():
+            for chunk in plan_chunks(group[0], len(ds)):
+                cached = {(m.key, i) for m in group for i in chunk.frames if _cached(plan, m, ds, i, mid)}
+                sched.needed += [(m, ds, i) for i in chunk.frames for m in group]
+                sched.reused += len(cached)
+                todo = tuple(m for m in group if any((m.key, i) not in cached for i in chunk.frames))
+                if todo:
+                    sched.tasks.append(FrameTask(
+                        dataset_root=str(ds.root.resolve()), dataset_checksum=ds.checksum, dataset_name=ds.name,
+                        sequence=ds.sequence, frames=chunk.frames, warmup=chunk.warmup, methods=todo,
+                        config=plan.config, cached=frozenset(cached),
+                        preview=mid if mid in chunk.frames else None))
+    return sched
+
+
+def _run(plan: RunPlan) -> BenchResult:
+    sched = _schedule(plan)
+    ex = plan.executor.make(len(sched.tasks))
+    threads = plan.threads_per_task or ex.threads
     if threads is not None:
-        tasks = [dataclasses.replace(t, threads=threads) for t in tasks]
-    log.debug("bench: %d results to compute, %d cached, on %s", n_todo, reused, ex.name)
-    for ds in ds_list:   # the inputs of the qualitative figure
-        p = R.preview_path(work, ds.checksum)
+        sched.tasks = [dataclasses.replace(t, threads=threads) for t in sched.tasks]
+    log.debug("bench: %d results to compute, %d cached, on %s", sched.n_todo, sched.reused, ex.name)
+    for ds in plan.datasets:   # the inputs of the qualitative figure
+        p = R.preview_path(plan.work, ds.checksum)
         if not p.exists():
             R.save_npz(p, **preview_inputs(ds, preview_frame(ds)))
+    _execute(plan, ex, sched)
 
-    bar = tqdm(total=n_todo, desc="bench", unit="result", disable=(None if progress is None else not progress),
-               file=sys.stderr, dynamic_ncols=True)
+    # this run's rows, from the cache
+    parts = [R.cache_part(plan.work, m.key, ds.checksum, i) for m, ds, i in sched.needed]
+    new = R.read_parts([p for p in parts if p.exists()])
+    _check_parts(new, sched.needed, plan.out)
+    _check_references(new, plan.datasets)
+    table, superseded = _merge_earlier(plan, new)
+    digest = R.write_table(table, plan.work / R.TABLE)
+    record = {"executor": ex.name, "computed": sched.n_todo, "reused": sched.reused, "superseded": superseded}
+    _write_manifest(plan, table, digest, record)
+    if superseded:
+        log.debug("bench: superseded earlier rows of %s", "; ".join(superseded))
+    return BenchResult(out=plan.out, table=table, computed=sched.n_todo, reused=sched.reused, superseded=superseded)
+
+
+def _execute(plan: RunPlan, ex, sched: _Schedule) -> None:
+    """Run the tasks; write each result's cache part (and preview) as soon as its task returns."""
+    bar = tqdm(total=sched.n_todo, desc="bench", unit="result", file=sys.stderr, dynamic_ncols=True,
+               disable=(None if plan.progress is None else not plan.progress))
 
     def on_done(task: FrameTask, output: FrameOutput) -> None:
-        for m in task.methods:
-            if m.key not in output.rows:
-                continue
-            if m.key in output.previews:
-                R.save_npz(R.preview_path(work, task.dataset_checksum, m.key), depth=output.previews[m.key],
-                           method_key=np.array(m.key), frame=np.array(task.frame))
-            part = R.cache_part(work, m.key, task.dataset_checksum, task.frame)
+        for key, depth in output.previews.items():
+            R.save_npz(R.preview_path(plan.work, task.dataset_checksum, key), depth=depth,
+                       method_key=np.array(key), frame=np.array(task.preview))
+        for (key, frame), rows in output.rows.items():
+            part = R.cache_part(plan.work, key, task.dataset_checksum, frame)
             part.parent.mkdir(parents=True, exist_ok=True)
-            R.write_table(output.rows[m.key], part)
-        bar.update(len(task.methods))
+            R.write_table(rows, part)
+        bar.update(len(task.todo))
 
     try:
-        if tasks:
-            ex.run(tasks, on_done)
+        if sched.tasks:
+            ex.run(sched.tasks, on_done)
     finally:
         bar.close()
 
-    # this run's rows, from the cache
-    parts = [R.cache_part(work, m.key, ds.checksum, i) for m, ds, i in needed]
-    new = R.read_parts([p for p in parts if p.exists()])
-    _check_parts(new, needed, out)
-    _check_references(new, ds_list)
 
-    # earlier runs' rows that this run does not touch
-    superseded: list[str] = []
-    if prev_meta is not None and prev_meta.get("table"):
-        old = R.load_results(work)
-        pairs_new = set(zip(new["method"], new["dataset"]))
-        touched = pd.Series([p in pairs_new for p in zip(old["method"], old["dataset"])], index=old.index, dtype=bool)
-        old_pairs = old.loc[touched, ["method", "method_key", "dataset", "dataset_checksum"]].drop_duplicates()
-        new_ids = set(zip(new["method_key"], new["dataset_checksum"]))
-        superseded = sorted({f"{r.method_key} on {r.dataset}" for r in old_pairs.itertuples()
-                             if (r.method_key, r.dataset_checksum) not in new_ids})
-        table = pd.concat([old.loc[~touched], new], ignore_index=True)
-    else:
-        table = new
-    table = R.sort_rows(table)
-    digest = R.write_table(table, work / R.TABLE)
-    _write_manifest(work, prev_meta, table, ds_list, method_list, config, digest, started, ex.name,
-                    n_todo, reused, superseded)
-    if superseded:
-        log.debug("bench: superseded earlier rows of %s", "; ".join(superseded))
-    return BenchResult(out, table, n_todo, reused, superseded)
+def _merge_earlier(plan: RunPlan, new: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+    """This run's rows plus earlier runs' rows of (method, dataset) pairs this run does not touch."""
+    if plan.prev_meta is None or not plan.prev_meta.get("table"):
+        return R.sort_rows(new), []
+    old = R.load_results(plan.work)
+    pairs_new = set(zip(new["method"], new["dataset"]))
+    touched = pd.Series([p in pairs_new for p in zip(old["method"], old["dataset"])], index=old.index, dtype=bool)
+    old_pairs = old.loc[touched, ["method", "method_key", "dataset", "dataset_checksum"]].drop_duplicates()
+    new_ids = set(zip(new["method_key"], new["dataset_checksum"]))
+    superseded = sorted({f"{r.method_key} on {r.dataset}" for r in old_pairs.itertuples()
+                         if (r.method_key, r.dataset_checksum) not in new_ids})
+    return R.sort_rows(pd.concat([old.loc[~touched], new], ignore_index=True)), superseded
 
 
 def _check_parts(df: pd.DataFrame, needed, out: Path) -> None:
@@ -436,31 +405,33 @@ def _has_roi(ds: AlignedDataset) -> bool:
     return any(r["roi_file"] for r in ds.rows)
 
 
-def _write_manifest(work, prev_meta, table, ds_list, method_list, config, digest, started, executor, computed,
-                    reused, superseded) -> None:
-    prev = prev_meta or {}
+def _depthbench_version() -> str:
+    try:
+        from importlib.metadata import version
+        return version("depthbench")
+    except Exception:   # noqa: BLE001 - not installed as a distribution
+        return "unknown"
+
+
+def _write_manifest(plan: RunPlan, table: pd.DataFrame, digest: str, record: dict) -> None:
+    """``results.json``: this run's datasets and methods merged with the earlier runs' still in the table."""
+    prev = plan.prev_meta or {}
     datasets = {d["checksum"]: d for d in prev.get("datasets", [])}
-    for ds in ds_list:
+    for ds in plan.datasets:
         datasets[ds.checksum] = {"name": ds.name, "sequence": ds.sequence, "checksum": ds.checksum,
                                  "path": str(ds.root.resolve()), "frames": len(ds), "simulated": bool(ds.simulated),
                                  "preview_frame": preview_frame(ds)}
     present = set(table["dataset_checksum"].unique())
     methods = {m["key"]: m for m in prev.get("methods", [])}
-    for m in method_list:
-        methods[m.key] = {"name": m.name, "version": str(m.version), "key": m.key, "learned": bool(m.learned),
-                          "description": getattr(m, "description", "") or ""}
+    methods.update({m.key: m.describe() for m in plan.methods})
     keys = set(table["method_key"].unique())
-    try:
-        from importlib.metadata import version
-        db_version = version("depthbench")
-    except Exception:   # noqa: BLE001 - not installed as a distribution
-        db_version = "unknown"
-    run = {"started": started, "finished": _now(), "executor": executor, "computed": int(computed),
-           "reused": int(reused), "methods": [m.key for m in method_list],
-           "datasets": [ds.name for ds in ds_list], "superseded": superseded}
-    meta = {"format": R.FORMAT, "schema_version": R.SCHEMA_VERSION, "metrics": config.to_dict(),
+    run = {"started": plan.started, "finished": _now(), "executor": record["executor"],
+           "computed": int(record["computed"]), "reused": int(record["reused"]),
+           "methods": [m.key for m in plan.methods], "datasets": [ds.name for ds in plan.datasets],
+           "superseded": record["superseded"]}
+    meta = {"format": R.FORMAT, "schema_version": R.SCHEMA_VERSION, "metrics": plan.config.to_dict(),
             "table": {"file": R.TABLE, "sha256": digest, "rows": int(len(table))},
             "datasets": [d for c, d in datasets.items() if c in present],
             "methods": [m for k, m in methods.items() if k in keys],
-            "runs": prev.get("runs", []) + [run], "depthbench_version": db_version}
-    R.write_manifest(work, meta)
+            "runs": prev.get("runs", []) + [run], "depthbench_version": _depthbench_version()}
+    R.write_manifest(plan.work, meta)

@@ -5,16 +5,17 @@ simulate (lq-hq rig, moving people and balloons, ground truth)
   -> bench (every registered method scored against the warped HQ reference and the truth)
   -> leaderboard (Markdown + HTML + figures)
 
-Each step runs through the same command line a user types, so the demo also proves the
-commands. A stage whose package is not installed is reported and skipped.
+Each step calls the stage's library function (:func:`capture.sim.simulate`,
+:func:`align.pipeline.align_session`, :func:`bench.runner.run_benchmark`) with the values the
+equivalent command line would use, and prints that command so a user can repeat the step by hand.
 """
 from __future__ import annotations
 
-import importlib.util
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Callable
 
 from depthbench.errors import DepthbenchError
 from depthbench.fsutil import check_output_free
@@ -22,9 +23,11 @@ from depthbench.fsutil import check_output_free
 
 @dataclass
 class DemoStep:
+    """One stage of the demo: what it does, the equivalent command, the library call, its output."""
+
     name: str
-    module: str
-    argv: list[str]
+    command: str
+    call: Callable[[], Any]
     output: Path
     seconds: float = 0.0
     status: str = "pending"
@@ -35,43 +38,83 @@ class DemoResult:
     out: Path
     steps: list[DemoStep] = field(default_factory=list)
 
+    @property
+    def leaderboard(self) -> Path:
+        return self.out / "results" / "leaderboard.md"
 
-def plan(out: Path, *, seconds: float, seed: int, force: bool, time_shift_ms: float | None) -> list[DemoStep]:
+
+@dataclass(frozen=True)
+class DemoConfig:
+    """The demo's knobs: scene ``seconds``, ``seed``, the sensors' ``time_shift_ms`` (None: drawn from the
+    seed), image ``scale`` (1 = the sensors' own size), the benchmark's ``methods`` and local ``jobs``."""
+
+    seconds: float = 3.0
+    seed: int = 0
+    time_shift_ms: float | None = None
+    scale: float = 1.0
+    methods: str = "all"
+    jobs: int | None = None
+    progress: bool = True
+
+
+def _command(*parts: Any) -> str:
+    return "depthbench " + " ".join(str(p) for p in parts if p is not None and p != "")
+
+
+def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
+    """The demo's steps, in order (nothing runs until each step's ``call``)."""
+    from align.pipeline import align_session
+    from bench.runner import run_benchmark
+    from capture.sim import simulate
+
     session, aligned, results = out / "session", out / "aligned", out / "results"
-    f = ["--force"] if force else []
-    sim = ["capture", "simulate", "--rig", "lq-hq", "--scene", "people", "--seconds", f"{seconds:g}",
-           "--seed", str(seed), "--out", str(session), *f]
-    if time_shift_ms is not None:
-        sim += ["--time-shift-ms", f"{time_shift_ms:g}"]
+    shift_us = None if config.time_shift_ms is None else round(config.time_shift_ms * 1000)
+    f = "--force" if force else ""
+    shift = "" if config.time_shift_ms is None else f"--time-shift-ms {config.time_shift_ms:g}"
+    scale = "" if config.scale == 1.0 else f"--scale {config.scale:g}"
+    jobs = "" if config.jobs is None else f"--jobs {config.jobs}"
     return [
-        DemoStep("simulate an LQ+HQ rig", "capture.commands.simulate", sim, session),
-        DemoStep("align HQ onto LQ", "align.cli", ["align", str(session), "--out", str(aligned), *f], aligned),
-        DemoStep("benchmark every method", "bench.cli",
-                 ["bench", "run", "--data", str(aligned), "--methods", "all", "--out", str(results), *f], results),
+        DemoStep("simulate an LQ+HQ rig",
+                 _command("capture simulate --rig lq-hq --scene people --seconds", f"{config.seconds:g}", "--seed",
+                          config.seed, scale, "--out", session, shift, f),
+                 lambda: simulate(session, rig="lq-hq", scene="people", seconds=config.seconds, seed=config.seed,
+                                  force=force, time_shift_us=shift_us, scale=config.scale, progress=config.progress),
+                 session),
+        DemoStep("align HQ onto LQ", _command("align", session, "--out", aligned, f),
+                 lambda: align_session(session, aligned, force=force, progress=config.progress), aligned),
+        DemoStep("benchmark every method",
+                 _command("bench run --data", aligned, "--methods", config.methods, "--out", results, jobs, f),
+                 lambda: run_benchmark([aligned], config.methods, results, force=force, jobs=config.jobs,
+                                       progress=None if config.progress else False),
+                 results),
     ]
 
 
 def run_demo(out: str | Path, *, seconds: float = 3.0, seed: int = 0, force: bool = False,
-             time_shift_ms: float | None = None) -> DemoResult:
-    """Run the stages in order; raises the first stage's error (a :class:`DepthbenchError`)."""
-    from depthbench.cli import main
+             time_shift_ms: float | None = None, config: DemoConfig | None = None) -> DemoResult:
+    """Run the stages in order into ``out`` (``session/``, ``aligned/``, ``results/``).
 
+    ``config`` (None: built from ``seconds``, ``seed`` and ``time_shift_ms``) sets every knob.
+    Raises the first stage's error (a :class:`DepthbenchError`, one line).
+    """
+    config = config or DemoConfig(seconds=seconds, seed=seed, time_shift_ms=time_shift_ms)
+    if not config.seconds > 0:
+        raise DepthbenchError(f"demo: seconds must be positive, got {config.seconds}")
     out = Path(out)
     check_output_free(out, force=force, what="demo output folder")
     out.mkdir(parents=True, exist_ok=True)
     result = DemoResult(out)
-    for step in plan(out, seconds=seconds, seed=seed, force=force, time_shift_ms=time_shift_ms):
+    for step in plan(out, config, force=force):
         result.steps.append(step)
-        if importlib.util.find_spec(step.module) is None:
-            step.status = "skipped (stage not installed)"
-            continue
-        print(f"[demo] {step.name}: depthbench {' '.join(step.argv)}", file=sys.stderr, flush=True)
+        print(f"[demo] {step.name}: {step.command}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
-        code = main(step.argv)
-        step.seconds = time.perf_counter() - t0
-        if code != 0:
-            step.status = f"failed (exit {code})"
-            raise DepthbenchError(f"demo step '{step.name}' failed with exit status {code}")
+        try:
+            step.call()
+        except DepthbenchError:
+            step.status = "failed"
+            raise
+        finally:
+            step.seconds = time.perf_counter() - t0
         step.status = "done"
     return result
 
@@ -93,12 +136,11 @@ def register(subparsers) -> None:
 def _cli(args) -> int:
     if args.seconds <= 0:
         raise DepthbenchError(f"--seconds must be positive, got {args.seconds}")
-    result = run_demo(args.out, seconds=args.seconds, seed=args.seed, force=args.force,
-                      time_shift_ms=args.time_shift_ms)
+    result = run_demo(args.out, force=args.force,
+                      config=DemoConfig(seconds=args.seconds, seed=args.seed, time_shift_ms=args.time_shift_ms))
     print(f"\ndemo finished in {sum(s.seconds for s in result.steps):.0f} s; outputs:")
     for step in result.steps:
         print(f"  {step.name:<26} {step.status:<32} {step.output}")
-    report = result.out / "results" / "leaderboard.md"
-    if report.exists():
-        print(f"\nleaderboard: {report}  (HTML: {report.with_suffix('.html')})")
+    if result.leaderboard.exists():
+        print(f"\nleaderboard: {result.leaderboard}  (HTML: {result.leaderboard.with_suffix('.html')})")
     return 0

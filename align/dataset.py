@@ -23,14 +23,12 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from align.errors import AlignedFormatError
 from capture.camera import Intrinsics, Transform
-from capture.session import decode_depth, encode_depth
 from data_manifests import schema_problem
-from depthbench.errors import UnsafePathError
+from depthbench import frames as codec
 from depthbench.fsutil import atomic_write_json, read_json, safe_join, sha256_bytes, staged_directory
 
 FORMAT = "depthbench.aligned"
@@ -40,6 +38,8 @@ LAYERS = ("lq_depth", "lq_color", "hq_depth", "roi", "truth_depth")
 FRAME_COLUMNS = ("index", "lq_frame", "hq_frame", "lq_timestamp_us") + tuple(
     f"{layer}_{part}" for layer in LAYERS for part in ("file", "sha256"))
 TRUTH_UNIT_M = 1e-4
+#: The depth layers and their unit: None = the dataset's ``depth_unit_m``.
+_DEPTH_UNITS = {"lq_depth": None, "hq_depth": None, "truth_depth": TRUTH_UNIT_M}
 
 
 @dataclass
@@ -111,49 +111,45 @@ class AlignedDataset:
     def T_lq_hq(self) -> Transform:
         return Transform.from_list(self.meta["T_lq_hq"])
 
-    def _layer(self, i: int, layer: str, *, flags=cv2.IMREAD_UNCHANGED):
-        row = self.rows[i]
-        rel = row[f"{layer}_file"]
-        if not rel:
+    def layer_path(self, i: int, layer: str) -> Path | None:
+        """The file of ``layer`` of frame ``i`` (inside the dataset folder), ``None`` if the frame has none."""
+        rel = self.rows[i][f"{layer}_file"]
+        return safe_join(self.root, rel, source=self.frames_path, error=AlignedFormatError) if rel else None
+
+    def _layer(self, i: int, layer: str) -> np.ndarray | None:
+        """The image of ``layer`` as stored (checked against its sha256 and the LQ image size)."""
+        path = self.layer_path(i, layer)
+        if path is None:
             return None
-        try:
-            path = safe_join(self.root, rel, source=self.frames_path)
-        except UnsafePathError as exc:
-            raise AlignedFormatError(str(exc)) from None
-        try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            raise AlignedFormatError(f"{path}: missing") from None
-        if sha256_bytes(data) != row[f"{layer}_sha256"]:
-            raise AlignedFormatError(f"{path}: checksum mismatch with frames.csv")
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
-        if img is None:
-            raise AlignedFormatError(f"{path}: not a readable image")
-        shape = self.lq_intrinsics.shape
-        if img.shape[:2] != shape:
-            raise AlignedFormatError(f"{path}: image is {img.shape[1]}x{img.shape[0]}, expected {shape[1]}x{shape[0]}")
-        if layer in ("lq_depth", "hq_depth", "truth_depth") and (img.dtype != np.uint16 or img.ndim != 2):
-            raise AlignedFormatError(f"{path}: depth must be single-channel 16-bit")
+        data = codec.read_frame_bytes(path, sha256=self.rows[i][f"{layer}_sha256"], table="frames.csv",
+                                      error=AlignedFormatError)
+        img = codec.decode_image(data, where=path, error=AlignedFormatError, shape=self.lq_intrinsics.shape)
+        if layer in _DEPTH_UNITS:
+            codec.check_depth_counts(img, where=path, error=AlignedFormatError)
         return img
 
+    def _depth(self, i: int, layer: str) -> np.ndarray | None:
+        img = self._layer(i, layer)
+        unit = self.depth_unit_m if _DEPTH_UNITS[layer] is None else float(self.meta.get("truth_unit_m", TRUTH_UNIT_M))
+        return None if img is None else codec.decode_depth(img, unit)
+
     def lq_depth(self, i: int) -> np.ndarray:
-        return decode_depth(self._layer(i, "lq_depth"), self.depth_unit_m)
+        return self._depth(i, "lq_depth")
 
     def reference(self, i: int) -> np.ndarray:
         """The HQ depth warped onto the LQ image plane (NaN where no reference)."""
-        return decode_depth(self._layer(i, "hq_depth"), self.depth_unit_m)
+        return self._depth(i, "hq_depth")
 
     def lq_color(self, i: int) -> np.ndarray | None:
-        img = self._layer(i, "lq_color")
-        return None if img is None else cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+        path, img = self.layer_path(i, "lq_color"), self._layer(i, "lq_color")
+        return None if img is None else codec.to_rgb(img, where=path, error=AlignedFormatError)
 
     def roi(self, i: int) -> np.ndarray | None:
         img = self._layer(i, "roi")
         return None if img is None else img > 0
 
     def truth(self, i: int) -> np.ndarray | None:
-        img = self._layer(i, "truth_depth")
-        return None if img is None else decode_depth(img, float(self.meta.get("truth_unit_m", TRUTH_UNIT_M)))
+        return self._depth(i, "truth_depth")
 
     def frame(self, i: int) -> AlignedFrame:
         return AlignedFrame(i, self.lq_depth(i), self.reference(i), self.lq_color(i), self.roi(i), self.truth(i))
@@ -182,19 +178,16 @@ class AlignedDatasetWriter:
             return "", ""
         if img.shape[:2] != self.K.shape:
             raise AlignedFormatError(f"{layer}: image is {img.shape[1]}x{img.shape[0]}, LQ is {self.K.width}x{self.K.height}")
-        if layer in ("lq_depth", "hq_depth"):
-            img = encode_depth(img, self.meta["depth_unit_m"])
-        elif layer == "truth_depth":
-            img = encode_depth(img, TRUTH_UNIT_M)
+        kw = {"params": codec.PNG_LEVEL1, "where": layer, "error": AlignedFormatError}
+        if layer in _DEPTH_UNITS:
+            unit = self.meta["depth_unit_m"] if _DEPTH_UNITS[layer] is None else _DEPTH_UNITS[layer]
+            data = codec.encode_depth_png(img, unit_m=unit, **kw)
         elif layer == "roi":
-            img = np.where(img, 255, 0).astype(np.uint8)
+            data = codec.encode_mask_png(img, **kw)
         else:
-            img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
-        ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-        data = buf.tobytes()
+            data, _ = codec.encode_color(img, encoding="png", **kw)
         rel = f"{layer}/{i:06d}.png"
-        (self.root / rel).write_bytes(data)
-        return rel, sha256_bytes(data)
+        return rel, codec.write_frame_file(self.root / rel, data)
 
     def add_frame(self, lq_depth: np.ndarray, reference: np.ndarray, *, lq_color=None, roi=None, truth=None,
                   lq_frame: int = -1, hq_frame: int = -1, lq_timestamp_us: int = 0) -> int:

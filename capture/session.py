@@ -21,87 +21,27 @@ import json
 import os
 import shutil
 import threading
-import zlib
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pandas as pd
 
 from capture.camera import Intrinsics, Transform
-from capture.errors import CalibrationError, SessionFormatError
+from capture.errors import CalibrationError, DiskSpaceError, SessionFormatError
 from data_manifests import schema_problem
-from depthbench.errors import UnsafePathError
-from depthbench.fsutil import (atomic_write_json, check_output_free, publish_directory, read_json, safe_join,
-                                  sha256_bytes, sha256_file, staging_dir_for)
+from depthbench import frames as codec
+# The frame codec's depth conversions and structure check, importable from here as before.
+from depthbench.frames import decode_depth, encode_depth, image_structure_problem  # noqa: F401
+from depthbench.fsutil import (atomic_write_json, check_output_free, free_bytes, human_bytes, publish_directory,
+                                  read_json, safe_join, sha256_bytes, sha256_file, staging_dir_for)
 
 FORMAT = "depthbench.session"
 FORMAT_VERSION = "1.0"
 MANIFEST = "session.json"
 FRAMES_COLUMNS = ("stream", "frame_number", "device_timestamp_us", "host_timestamp_us", "file", "sha256")
 _INT_COLUMNS = ("frame_number", "device_timestamp_us", "host_timestamp_us")
-
-
-# ----------------------------------------------------------------------------- depth encoding
-def encode_depth(depth_m: np.ndarray, depth_unit_m: float) -> np.ndarray:
-    """float metres (NaN = none) to uint16 counts (0 = none); out-of-range values become 0."""
-    counts = np.rint(np.asarray(depth_m, dtype=np.float64) / depth_unit_m)
-    bad = ~np.isfinite(counts) | (counts < 1) | (counts > 65535)
-    counts[bad] = 0
-    return counts.astype(np.uint16)
-
-
-def decode_depth(counts: np.ndarray, depth_unit_m: float) -> np.ndarray:
-    """uint16 counts (0 = none) to float32 metres with NaN holes."""
-    depth = counts.astype(np.float32) * np.float32(depth_unit_m)
-    depth[counts == 0] = np.nan
-    return depth
-
-
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: PNG options of the writer: zlib level 1 with run-length strategy and the "up" filter
-#: (about 3x faster than the default at the same size on depth images; any PNG decoder reads it).
-PNG_PARAMS = (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE,
-              cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_UP)
-#: PNG options when the writer must be fast (the recorder falling behind): stored, unfiltered
-#: deflate blocks, about 8x faster and 1.5-3x larger; still a lossless, standard PNG.
-PNG_FAST_PARAMS = (cv2.IMWRITE_PNG_COMPRESSION, 0, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE)
-
-
-def image_structure_problem(data: bytes) -> str | None:
-    """Why ``data`` is not a complete PNG or JPEG file, or ``None``.
-
-    PNG: the signature, every chunk's length and CRC, and a final IEND chunk (catches truncation
-    and flipped bytes without handing broken data to libpng, which prints to stderr).
-    JPEG: the SOI and EOI markers."""
-    if data.startswith(_PNG_SIGNATURE):
-        pos, n = len(_PNG_SIGNATURE), len(data)
-        while pos + 12 <= n:
-            length = int.from_bytes(data[pos:pos + 4], "big")
-            end = pos + 12 + length
-            if end > n:
-                return "truncated PNG (a chunk runs past the end of the file)"
-            if zlib.crc32(data[pos + 4:end - 4]) != int.from_bytes(data[end - 4:end], "big"):
-                return f"corrupt PNG (CRC error in chunk {data[pos + 4:pos + 8].decode('latin-1')!r})"
-            if data[pos + 4:pos + 8] == b"IEND":
-                return None
-            pos = end
-        return "truncated PNG (no IEND chunk)"
-    if data.startswith(b"\xff\xd8"):
-        return None if data.rstrip(b"\x00").endswith(b"\xff\xd9") else "truncated JPEG (no end-of-image marker)"
-    return "not a PNG or JPEG file" if data else "empty file"
-
-
-def _decode_image(data: bytes, path: Path) -> np.ndarray:
-    problem = image_structure_problem(data)
-    if problem:
-        raise SessionFormatError(f"{path}: {problem}")
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise SessionFormatError(f"{path}: not a readable image (truncated or corrupt)")
-    return img
 
 
 # ----------------------------------------------------------------------------- typed views
@@ -187,11 +127,20 @@ def validate_manifest(manifest: dict, where: Path) -> None:
             raise SessionFormatError(f"{where}: extrinsics {e['dst']}<-{e['src']}: {exc}") from None
 
 
-def _read_frames_csv(path: Path, sensor: SensorInfo) -> pd.DataFrame:
+def _read_frames_csv(path: Path, sensor: SensorInfo, *, sha256: str | None = None) -> pd.DataFrame:
+    """Parse and check a sensor's ``frames.csv`` (against ``sha256`` from ``session.json`` if given)."""
     try:
-        text = path.read_text()
+        data = path.read_bytes()
     except FileNotFoundError:
         raise SessionFormatError(f"{path}: frames table is missing") from None
+    except OSError as exc:
+        raise SessionFormatError(f"{path}: frames table cannot be read ({exc.strerror})") from None
+    if sha256 is not None and sha256_bytes(data) != sha256:
+        raise SessionFormatError(f"{path}: checksum mismatch with session.json")
+    try:
+        text = data.decode()
+    except UnicodeDecodeError:
+        raise SessionFormatError(f"{path}: not a text table (not UTF-8)") from None
     rows = list(csv.reader(io.StringIO(text)))
     if not rows or tuple(rows[0]) != FRAMES_COLUMNS:
         raise SessionFormatError(f"{path}: header must be {','.join(FRAMES_COLUMNS)}")
@@ -249,11 +198,7 @@ class Session:
         self._frames: dict[str, pd.DataFrame] = {}
         for sid, sensor in self.sensors.items():
             path = self._safe(sensor.frames_path, self.manifest_path)
-            rel = sensor.frames_path
-            expected = self.manifest.get("checksums", {}).get(rel)
-            if expected is not None and path.exists() and sha256_file(path) != expected:
-                raise SessionFormatError(f"{path}: checksum mismatch with session.json")
-            df = _read_frames_csv(path, sensor)
+            df = _read_frames_csv(path, sensor, sha256=self.manifest.get("checksums", {}).get(sensor.frames_path))
             for f in df["file"]:
                 self._safe(f, path)
             self._frames[sid] = df
@@ -311,10 +256,7 @@ class Session:
         return self.frames(sensor, stream)[f"{self.time_base}_timestamp_us"].to_numpy(np.int64)
 
     def _safe(self, rel: str, source: Path) -> Path:
-        try:
-            return safe_join(self.root, rel, source=source)
-        except UnsafePathError as exc:
-            raise SessionFormatError(str(exc)) from None
+        return safe_join(self.root, rel, source=source, error=SessionFormatError)
 
     def _row(self, sensor: str, stream: str, frame_number: int):
         df = self.frames(sensor, stream)
@@ -323,34 +265,25 @@ class Session:
             raise SessionFormatError(f"{self.root / self.sensors[sensor].frames_path}: no frame {frame_number} in stream {stream}")
         return df.iloc[hit[0]]
 
+    def frame_path(self, sensor: str, stream: str, frame_number: int) -> Path:
+        """The file of one frame (inside the session folder; not checked for presence)."""
+        row = self._row(sensor, stream, frame_number)
+        return self._safe(row["file"], self.root / self.sensors[sensor].frames_path)
+
     def read_image(self, sensor: str, stream: str, frame_number: int, *, verify: bool = True) -> np.ndarray:
         """The stored image as it is on disk (uint16 counts for depth, RGB uint8 for colour)."""
         info = self.stream(sensor, stream)
         row = self._row(sensor, stream, frame_number)
-        path = self._safe(row["file"], self.root / self.sensors[sensor].frames_path)
-        try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            raise SessionFormatError(f"{path}: frame file is missing") from None
-        if verify and sha256_bytes(data) != row["sha256"]:
-            raise SessionFormatError(f"{path}: checksum mismatch with {self.sensors[sensor].frames_path}")
-        img = _decode_image(data, path)
-        return self._check_image(img, info, path)
-
-    @staticmethod
-    def _check_image(img: np.ndarray, info: StreamInfo, path: Path) -> np.ndarray:
+        table = self.sensors[sensor].frames_path
+        path = self._safe(row["file"], self.root / table)
+        data = codec.read_frame_bytes(path, sha256=row["sha256"] if verify else None, table=table,
+                                      error=SessionFormatError)
+        img = codec.decode_image(data, where=path, error=SessionFormatError)
         if img.shape[:2] != (info.height, info.width):
             raise SessionFormatError(f"{path}: frame is {img.shape[1]}x{img.shape[0]}, stream is {info.width}x{info.height}")
         if info.encoding == "png16":
-            if img.dtype != np.uint16 or img.ndim != 2:
-                bits = 8 * img.dtype.itemsize
-                raise SessionFormatError(f"{path}: {info.type} frame must be single-channel 16-bit, got {bits}-bit with {1 if img.ndim == 2 else img.shape[2]} channel(s)")
-            return img
-        if img.dtype != np.uint8:
-            raise SessionFormatError(f"{path}: colour frame must be 8-bit, got {img.dtype}")
-        if img.ndim == 2:
-            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
-        return cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2RGB)
+            return codec.check_depth_counts(img, where=path, error=SessionFormatError)
+        return codec.to_rgb(img, where=path, error=SessionFormatError)
 
     def read_depth(self, sensor: str, frame_number: int, *, stream: str = "depth", verify: bool = True) -> np.ndarray:
         """Depth as float32 metres ``(H, W)`` with NaN where there is no measurement."""
@@ -370,9 +303,53 @@ class Session:
                 n += 1
         return n
 
+    def check_frame_files(self, sensors=None) -> int:
+        """Check that every indexed frame file of ``sensors`` (default all) is present, a regular
+        file and readable, without reading it (one ``stat`` each; for a long job to fail at once
+        rather than at the frame). Returns the number checked; raises :class:`SessionFormatError`."""
+        n = 0
+        for sid in self.sensors if sensors is None else sensors:
+            table = self.sensors[sid].frames_path
+            for rel in self._frames[sid]["file"]:
+                path = self._safe(rel, self.root / table)
+                problem = codec.file_problem(path)
+                if problem:
+                    raise SessionFormatError(f"{path}: frame file listed in {table} is {problem}")
+                n += 1
+        return n
+
 
 def open_session(path: str | os.PathLike, *, verify: str = "index") -> Session:
     return Session(path, verify=verify)
+
+
+# ----------------------------------------------------------------------------- disk space
+#: Bytes of one ``frames.csv`` row, at most (stream name, three integers, path, sha256).
+_ROW_BYTES = 200
+
+
+def frame_bytes_bound(info: StreamInfo) -> int:
+    """Most bytes one frame of the stream ``info`` takes on disk, index row included: its largest
+    encoding (:func:`depthbench.frames.encoded_size_bound`: the uncompressed PNG the recorder writes
+    while falling behind)."""
+    depth_like = info.encoding == "png16"
+    return _ROW_BYTES + codec.encoded_size_bound(info.width, info.height, channels=1 if depth_like else 3,
+                                                 bytes_per_sample=2 if depth_like else 1)
+
+
+def check_disk_space(out: str | os.PathLike, streams, seconds: float) -> int:
+    """Refuse (:class:`DiskSpaceError`) to write ``seconds`` of ``streams`` (:class:`StreamInfo`, each at
+    its nominal ``fps``) into the session folder ``out`` when even the free space of its file system
+    is smaller than the most they can take (:func:`frame_bytes_bound`). Returns that bound."""
+    streams = list(streams)
+    per_s = sum(st.fps * frame_bytes_bound(st) for st in streams)
+    need = per_s * float(seconds)
+    free = free_bytes(out)
+    if need > free:
+        raise DiskSpaceError(f"{out}: {seconds:g} s of {len(streams)} streams can take up to {human_bytes(need)} "
+                             f"({human_bytes(per_s)}/s as uncompressed frames), and its disk has {human_bytes(free)} "
+                             "free")
+    return int(need)
 
 
 # ----------------------------------------------------------------------------- the writer
@@ -462,20 +439,7 @@ class SessionWriter:
         info = self.sensors[sensor].streams[stream]
         data, ext = self._encode(image, info, f"{sensor}/{stream}", fast=fast)
         rel = f"{sensor}/{stream}/{int(frame_number):08d}.{ext}"
-        path = self.root / rel
-        tmp = path.with_name(f".{path.name}.tmp")
-        try:
-            with open(tmp, "wb") as f:
-                f.write(data)
-                if self.fsync:
-                    f.flush()
-                    os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
-        return rel, sha256_bytes(data)
+        return rel, codec.write_frame_file(self.root / rel, data, fsync=self.fsync)
 
     def index_frame(self, sensor: str, stream: str, frame_number: int, device_timestamp_us: int,
                     host_timestamp_us: int, rel: str, sha256: str) -> None:
@@ -500,31 +464,17 @@ class SessionWriter:
 
     @staticmethod
     def _encode(image: np.ndarray, info: StreamInfo, name: str, *, fast: bool = False) -> tuple[bytes, str]:
-        png_params = PNG_FAST_PARAMS if fast else PNG_PARAMS
+        params = codec.PNG_STORED if fast else codec.PNG_RLE
         img = np.asarray(image)
         if img.shape[:2] != (info.height, info.width):
             raise SessionFormatError(f"{name}: frame is {img.shape[1]}x{img.shape[0]}, stream is {info.width}x{info.height}")
         if info.encoding == "png16":
-            if img.dtype.kind == "f":
-                img = encode_depth(img, info.depth_unit_m if info.type == "depth" else 1.0)
-            if img.dtype != np.uint16 or img.ndim != 2:
-                raise SessionFormatError(f"{name}: {info.type} frames must be (H, W) uint16 or float metres, got {img.dtype} {img.shape}")
-            ok, buf = cv2.imencode(".png", img, png_params)
-            return buf.tobytes(), "png"
-        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
-            raise SessionFormatError(f"{name}: colour frames must be (H, W, 3) RGB uint8, got {img.dtype} {img.shape}")
-        bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
-        if info.encoding == "jpeg":
-            ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])
-            return buf.tobytes(), "jpg"
-        ok, buf = cv2.imencode(".png", bgr, png_params)
-        return buf.tobytes(), "png"
+            unit = info.depth_unit_m if info.type == "depth" else 1.0
+            return codec.encode_depth_png(img, unit_m=unit, params=params, where=name, error=SessionFormatError), "png"
+        return codec.encode_color(img, encoding=info.encoding, params=params, where=name, error=SessionFormatError)
 
     def _safe_output(self, rel: str) -> Path:
-        try:
-            return safe_join(self.root, rel, source=self.root / MANIFEST)
-        except UnsafePathError as exc:
-            raise SessionFormatError(str(exc)) from None
+        return safe_join(self.root, rel, source=self.root / MANIFEST, error=SessionFormatError)
 
     def _close_index(self) -> None:
         for fd in self._index.values():

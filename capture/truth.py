@@ -18,16 +18,14 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pandas as pd
 
 from capture.camera import Intrinsics, Transform
 from capture.errors import CalibrationError, SessionFormatError
-from capture.session import decode_depth
 from data_manifests import schema_problem
-from depthbench.errors import UnsafePathError
-from depthbench.fsutil import read_json, safe_join, sha256_bytes
+from depthbench import frames as codec
+from depthbench.fsutil import read_json, safe_join
 
 TRUTH_FORMAT = "depthbench.truth"
 TRUTH_COLUMNS = ("frame_number", "scene_time_us", "device_timestamp_us", "host_timestamp_us", "host_jitter_us",
@@ -95,20 +93,11 @@ class Truth:
         sensor's depth image as rendered (lens distortion included)."""
         row = self._row(sensor, frame_number)
         table = self.root / sensor / "frames.csv"
-        try:
-            path = safe_join(self.root, row["file"], source=table)
-        except UnsafePathError as exc:
-            raise SessionFormatError(str(exc)) from None
-        try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            raise SessionFormatError(f"{path}: truth depth file is missing") from None
-        if verify and sha256_bytes(data) != row["sha256"]:
-            raise SessionFormatError(f"{path}: checksum mismatch with {table}")
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) if data else None
-        if img is None or img.dtype != np.uint16 or img.ndim != 2:
-            raise SessionFormatError(f"{path}: not a single-channel 16-bit PNG")
-        return decode_depth(img, float(self.info["truth_depth_unit_m"]))
+        path = safe_join(self.root, row["file"], source=table, error=SessionFormatError)
+        data = codec.read_frame_bytes(path, sha256=row["sha256"] if verify else None, table=table,
+                                      what="truth depth file", error=SessionFormatError)
+        return codec.decode_depth_png(data, unit_m=float(self.info["truth_depth_unit_m"]), where=path,
+                                      error=SessionFormatError)
 
     def T_world(self, sensor: str, camera: str = "depth") -> Transform:
         """Pose ``T_world_cam`` of ``sensor``'s ``depth`` or ``color`` camera."""
@@ -147,10 +136,7 @@ def read_truth(session_root: str | os.PathLike) -> Truth:
     _check_info(info, path)
     tables = {}
     for sensor, s in info["sensors"].items():
-        try:
-            table = safe_join(root, s.get("frames", f"{sensor}/frames.csv"), source=path)
-        except UnsafePathError as exc:
-            raise SessionFormatError(str(exc)) from None
+        table = safe_join(root, s.get("frames", f"{sensor}/frames.csv"), source=path, error=SessionFormatError)
         tables[sensor] = _read_table(table)
     return Truth(root, info, tables)
 

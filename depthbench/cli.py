@@ -60,7 +60,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except DepthbenchError as exc:
-        print(f"depthbench {args.stage}: error: {exc}", file=sys.stderr)
+        message = str(exc)
+        if exc.cli_hint and exc.cli_hint not in message:
+            message = f"{message}; {exc.cli_hint}"
+        print(f"depthbench {args.stage}: error: {message}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print(f"depthbench {args.stage}: interrupted", file=sys.stderr)

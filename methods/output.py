@@ -21,11 +21,9 @@ import os
 from datetime import datetime, timezone
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from capture.session import decode_depth, encode_depth
-from depthbench.errors import UnsafePathError
+from depthbench import frames as codec
 from depthbench.fsutil import atomic_write_json, read_json, safe_join, sha256_bytes, staged_directory
 from methods.base import Denoiser
 from methods.errors import MethodError
@@ -56,13 +54,11 @@ class DenoisedWriter:
         (self.root / "depth").mkdir()
 
     def add(self, index: int, depth_m: np.ndarray) -> None:
-        ok, buf = cv2.imencode(".png", encode_depth(depth_m, self.depth_unit_m), [cv2.IMWRITE_PNG_COMPRESSION, 1])
-        if not ok:  # pragma: no cover - OpenCV always encodes uint16 PNG
-            raise MethodError(f"frame {index}: could not encode the depth as PNG")
-        data = buf.tobytes()
+        """Write the denoised depth ``(H, W)`` float32 metres (NaN = none) of aligned frame ``index``."""
+        data = codec.encode_depth_png(depth_m, unit_m=self.depth_unit_m, params=codec.PNG_LEVEL1,
+                                      where=f"frame {index}", error=MethodError)
         rel = f"depth/{index:06d}.png"
-        (self.root / rel).write_bytes(data)
-        self.rows.append({"index": int(index), "file": rel, "sha256": sha256_bytes(data)})
+        self.rows.append({"index": int(index), "file": rel, "sha256": codec.write_frame_file(self.root / rel, data)})
 
     def close(self, *, seconds: float | None = None) -> Path:
         buf = io.StringIO()
@@ -125,12 +121,7 @@ class DenoisedOutput:
         row = self._by_index.get(int(index))
         if row is None:
             raise MethodError(f"{self.root}: no frame {index}")
-        try:
-            path = safe_join(self.root, row["file"], source=self.root / "frames.csv")
-        except UnsafePathError as exc:
-            raise MethodError(str(exc)) from None
-        data = path.read_bytes() if path.exists() else b""
-        if sha256_bytes(data) != row["sha256"]:
-            raise MethodError(f"{path}: missing or checksum mismatch with frames.csv")
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-        return decode_depth(img, self.depth_unit_m)
+        path = safe_join(self.root, row["file"], source=self.root / "frames.csv", error=MethodError)
+        data = codec.read_frame_bytes(path, sha256=row["sha256"], table="frames.csv", what="denoised depth file",
+                                      error=MethodError)
+        return codec.decode_depth_png(data, unit_m=self.depth_unit_m, where=path, error=MethodError)

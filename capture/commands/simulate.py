@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from capture.sim import EFFECTS, RIGS, SCENES, simulate
+from capture.sim import EFFECTS, RIGS, SCENES
 
 EPILOG = """effects (--effect NAME=VALUE, repeatable; they act on the LQ sensor unless noted):
   clock_drift_ppm  [-1000, 1000]  LQ host clock runs fast (+) or slow (-) against HQ
@@ -52,6 +52,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from capture.sim import simulate   # Open3D: imported only when simulating, not for every command line
+
     shift = None if args.time_shift_ms is None else round(args.time_shift_ms * 1000)
     r = simulate(args.out, rig=args.rig, scene=args.scene, seconds=args.seconds, seed=args.seed, effects=args.effect,
                  undeclared=args.undeclared, force=args.force, time_shift_us=shift, static=args.static,

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -17,7 +16,7 @@ from pathlib import Path
 from capture.camera import Intrinsics
 from capture.sim.clocks import Clock, Schedule
 from capture.sim.rigs import Rig, SensorSpec
-from depthbench.fsutil import atomic_write_json, atomic_write_text
+from depthbench.fsutil import atomic_write_bytes, atomic_write_json, atomic_write_text
 
 TRUTH_FORMAT = "depthbench.truth"
 TRUTH_FORMAT_VERSION = "1.0"
@@ -148,15 +147,6 @@ def _truth_sensor(s: SensorSpec) -> dict:
             "frames": f"{s.id}/frames.csv"}
 
 
-def write_file(root: Path, rel: str, data: bytes) -> None:
-    """Write ``root/rel`` through a temporary name and a rename (the folder exists)."""
-    path = root / rel
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
-
-
 class TruthWriter:
     """Writes ``truth/<sensor>/depth/<n>.png`` per frame, then the tables and ``truth.json``."""
 
@@ -173,7 +163,7 @@ class TruthWriter:
         s = self.plan.schedules[sensor]
         fn = int(s.frame_number[i])
         rel = f"{sensor}/depth/{fn:08d}.png"
-        write_file(self.root, rel, png)
+        atomic_write_bytes(self.root / rel, png)
         self.rows[sensor].append((fn, int(s.scene_time_us[i]), int(s.device_timestamp_us[i]),
                                   int(s.host_timestamp_us[i]), int(s.host_jitter_us[i]), rel, sha256))
 

@@ -14,15 +14,14 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Iterator
 
-import cv2
 import numpy as np
 
-from capture.session import PNG_PARAMS
 from capture.sim.kernels import depth_counts
 from capture.sim.output import TRUTH_DEPTH_UNIT_M, Plan
 from capture.sim.render import Renderer, camera_rays
 from capture.sim.scene import build_scene
 from capture.sim.sensors import SensorCameras, render_frame
+from depthbench import frames as codec
 from depthbench.fsutil import sha256_bytes
 
 #: One frame to render: (scene time µs, sensor order, sensor id, index in its schedule).
@@ -60,21 +59,6 @@ class _Stage:
         self.owner[self.stage] = self.owner.get(self.stage, 0.0) + time.perf_counter() - self.t
 
 
-def encode_png16(counts: np.ndarray) -> bytes:
-    ok, buf = cv2.imencode(".png", counts, PNG_PARAMS)
-    return buf.tobytes()
-
-
-def encode_color(rgb: np.ndarray, encoding: str) -> tuple[bytes, str]:
-    """RGB uint8 to PNG or JPEG (quality 95) bytes, as ``capture.session`` stores colour."""
-    bgr = np.ascontiguousarray(rgb[..., ::-1])
-    if encoding == "jpeg":
-        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])
-        return buf.tobytes(), "jpg"
-    ok, buf = cv2.imencode(".png", bgr, PNG_PARAMS)
-    return buf.tobytes(), "png"
-
-
 class FrameWorker:
     """Renders and encodes frames of a :class:`Plan` (one per process)."""
 
@@ -110,12 +94,17 @@ class FrameWorker:
         """Encode a rendered frame (thread-safe: OpenCV and hashlib release the GIL)."""
         sid, i, fn, frame, timings = raw
         spec = self.plan.rig.sensor(sid)
-        with timings("encode"):
-            files = {"depth": (encode_png16(depth_counts(frame.depth, spec.depth_unit_m)), "png"),
-                     "color": encode_color(frame.color, self.plan.color_encoding_of(sid)),
-                     "truth": (encode_png16(depth_counts(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
+        with timings("encode"):  # depth_counts: encode_depth's numbers, compiled
+            files = {"depth": (_depth_png(depth_counts(frame.depth, spec.depth_unit_m)), "png"),
+                     "color": codec.encode_color(frame.color, encoding=self.plan.color_encoding_of(sid)),
+                     "truth": (_depth_png(depth_counts(frame.truth_depth, TRUTH_DEPTH_UNIT_M)), "png")}
             files = {k: (data, ext, sha256_bytes(data)) for k, (data, ext) in files.items()}
         return EncodedFrame(sid, i, fn, files, dict(timings))
+
+
+def _depth_png(counts: np.ndarray) -> bytes:
+    """Session and truth depth counts as the session format's PNG (:data:`depthbench.frames.PNG_RLE`)."""
+    return codec.encode_png(counts, params=codec.PNG_RLE)
 
 
 #: Frames rendered ahead of the one being encoded, in one process.

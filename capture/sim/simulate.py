@@ -21,11 +21,12 @@ from capture.session import SessionWriter
 from capture.sim.clocks import DEFAULT_MAX_SHIFT_US, draw_clocks, frame_schedule
 from capture.sim.effects import parse_effects
 from capture.sim.errors import SimulationError
-from capture.sim.output import Plan, TruthWriter, session_manifest, write_file
+from capture.sim.output import Plan, TruthWriter, session_manifest
 from capture.sim.pipeline import EncodedFrame, Event, render_frames
 from capture.sim.rigs import Rig, build_rig
 from capture.sim.scene import build_scene
 from capture.sim.sensors import Timings
+from depthbench.fsutil import atomic_write_bytes
 
 COLOR_ENCODINGS = ("auto", "png", "jpeg")
 
@@ -193,7 +194,7 @@ def _write_frame(plan: Plan, writer: SessionWriter, truth: TruthWriter, enc: Enc
     for stream in ("depth", "color"):
         data, ext, sha = enc.files[stream]
         rel = f"{enc.sensor}/{stream}/{enc.frame_number:08d}.{ext}"
-        write_file(writer.root, rel, data)
+        atomic_write_bytes(writer.root / rel, data)
         writer.index_frame(enc.sensor, stream, enc.frame_number, dev, host, rel, sha)
     data, _, sha = enc.files["truth"]
     truth.add(enc.sensor, enc.index, data, sha)

@@ -42,7 +42,7 @@ def test_existing_output_needs_force(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep").write_text("precious")
-    with pytest.raises(OutputExistsError, match="--force"):
+    with pytest.raises(OutputExistsError, match="output exists$"):
         with staged_directory(out):
             pass
     assert (out / "keep").read_text() == "precious"

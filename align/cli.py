@@ -58,6 +58,9 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from align.errors import AlignError
     from align.pipeline import align_session
+    from depthbench.fsutil import check_output_outside
+
+    check_output_outside(args.out, [args.session], what="aligned dataset")
 
     if args.workers < 1:
         raise AlignError(f"--workers must be at least 1, got {args.workers}")

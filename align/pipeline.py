@@ -642,6 +642,7 @@ def align_session(session, out, *, force: bool = False, lq: str | None = None, h
     opts = AlignOptions(**options)
     opts.check()
     sess = session if isinstance(session, Session) else open_session(session)
+    sess.check_frame_files()   # every frame file present and readable before the long work
     out = Path(out)
     from depthbench.fsutil import check_output_free
 

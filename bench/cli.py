@@ -107,6 +107,9 @@ def register(subparsers) -> None:
 def _run(args) -> int:
     from bench.metrics import MetricConfig
     from bench.runner import run_benchmark
+    from depthbench.fsutil import check_output_outside
+
+    check_output_outside(args.out, args.data, what="results folder")
 
     config = MetricConfig(radius_m=args.radius_mm / 1000.0)
     res = run_benchmark(args.data, args.methods, args.out, config=config, jobs=args.jobs, workers=args.workers,
@@ -130,6 +133,9 @@ def _report(args) -> int:
 
 def _import_ddrnet(args) -> int:
     from align.external import import_ddrnet
+    from depthbench.fsutil import check_output_outside
+
+    check_output_outside(args.out, [args.src], what="aligned dataset")
 
     for p in import_ddrnet(args.src, args.out, force=args.force):
         print(p)

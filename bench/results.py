@@ -27,7 +27,7 @@ import pyarrow.parquet as pq
 
 from bench.errors import BenchError, ResultsFormatError, SchemaVersionError  # noqa: F401 (re-exported)
 from data_manifests import schema_problem
-from depthbench.fsutil import atomic_output, atomic_write_json, read_json
+from depthbench.fsutil import atomic_output, atomic_write_json, read_json, sha256_file
 
 FORMAT = "depthbench.results"
 SCHEMA_VERSION = 1
@@ -91,6 +91,12 @@ def write_table(df: pd.DataFrame, path: Path) -> str:
 
 def read_table(path: Path) -> pd.DataFrame:
     """Read a results table (or cache part); checks format and schema version."""
+    return _rows(open_table(path), Path(path))
+
+
+def open_table(path: Path) -> pq.ParquetFile:
+    """Open a results table (or cache part) and check its format, schema version and columns
+    (from the file's footer; the rows are not read yet)."""
     path = Path(path)
     try:
         pf = pq.ParquetFile(path)
@@ -104,11 +110,18 @@ def read_table(path: Path) -> pd.DataFrame:
         raise ResultsFormatError(f"{path}: not a depthbench results table (no {FORMAT} metadata)")
     if version != str(SCHEMA_VERSION).encode():
         raise SchemaVersionError(f"{path}: results schema version {version.decode()}, this depthbench reads version "
-                                 f"{SCHEMA_VERSION}; recompute with 'depthbench bench run' into a new folder (or --force)")
+                                 f"{SCHEMA_VERSION} (recompute the results with this version)")
     names = tuple(pf.schema_arrow.names)
     if names != COLUMNS:
         raise ResultsFormatError(f"{path}: columns {list(names)} differ from schema version {SCHEMA_VERSION}'s {list(COLUMNS)}")
-    df = pf.read().to_pandas()
+    return pf
+
+
+def _rows(pf: pq.ParquetFile, path: Path) -> pd.DataFrame:
+    try:
+        df = pf.read().to_pandas()
+    except (pa.ArrowException, OSError) as exc:
+        raise ResultsFormatError(f"{path}: damaged Parquet data ({str(exc).splitlines()[0]})") from None
     bad = df["schema_version"] != SCHEMA_VERSION
     if bad.any():
         raise SchemaVersionError(f"{path}: rows with schema_version {int(df['schema_version'][bad].iloc[0])}, this "
@@ -142,7 +155,7 @@ def read_manifest(root: Path) -> dict:
         raise ResultsFormatError(f"{path}: 'format' must be {FORMAT!r} (not a depthbench results folder)")
     if meta.get("schema_version") != SCHEMA_VERSION:
         raise SchemaVersionError(f"{path}: results schema version {meta.get('schema_version')!r}, this depthbench "
-                                 f"reads version {SCHEMA_VERSION}; write into a new folder or pass --force")
+                                 f"reads version {SCHEMA_VERSION} (recompute the results with this version)")
     problem = schema_problem("results", meta)
     if problem:
         raise ResultsFormatError(f"{path}: {problem}")
@@ -157,7 +170,11 @@ def write_manifest(root: Path, meta: dict) -> None:
 
 
 def load_results(path: str | os.PathLike) -> pd.DataFrame:
-    """The results table of a results folder (or a ``results.parquet`` path), checked."""
+    """The results table of a results folder (or a ``results.parquet`` path), checked.
+
+    When a ``results.json`` lies beside the table it must be valid (JSON, this schema version) and
+    the table must have the sha256 and row count it records: a table changed or damaged after
+    its run is refused before any of it is read."""
     path = Path(path)
     if path.is_dir():
         if not (path / TABLE).exists():
@@ -167,7 +184,27 @@ def load_results(path: str | os.PathLike) -> pd.DataFrame:
         path = path / TABLE
     elif not path.exists():
         raise ResultsFormatError(f"{path}: no such results folder or table")
-    return read_table(path)
+    pf = open_table(path)              # the file's own format and schema version first
+    recorded = _recorded_table(path)   # then results.json and the sha256 it records, before any row is read
+    df = _rows(pf, path)
+    if recorded is not None and recorded.get("rows") is not None and int(recorded["rows"]) != len(df):
+        raise ResultsFormatError(f"{path}: {len(df)} rows, {MANIFEST} records {recorded['rows']}")
+    return df
+
+
+def _recorded_table(path: Path) -> dict | None:
+    """The manifest's ``table`` entry for the table file ``path`` (checked against its sha256), or
+    ``None`` when no manifest lies beside it or the manifest records no table of that name."""
+    if not (path.parent / MANIFEST).exists():
+        return None
+    recorded = read_manifest(path.parent).get("table")
+    if not recorded or recorded.get("file") != path.name:
+        return None
+    digest = sha256_file(path)
+    if digest != recorded["sha256"]:
+        raise ResultsFormatError(f"{path}: sha256 {digest[:16]}... differs from {recorded['sha256'][:16]}... recorded "
+                                 f"in {MANIFEST} (the table was changed or damaged after its run)")
+    return recorded
 
 
 # ----------------------------------------------------------------------------------- previews

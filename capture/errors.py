@@ -24,3 +24,9 @@ class RigError(CaptureError):
 
 class RecordingError(CaptureError):
     """Recording stopped on a condition the user must act on (disk full, a sensor stopped delivering)."""
+
+
+class DiskSpaceError(RecordingError):
+    """A recording would need more disk space than its output's file system has free."""
+
+    cli_hint = "pass a smaller --seconds, or --no-space-check to record anyway"

@@ -42,7 +42,7 @@ from capture.drivers.base import (Driver, Frame, SensorDescription, driver_class
                                   host_clock_utc_offset_us)
 from capture.errors import DeviceError, RecordingError, RigError
 from capture.rig import Rig
-from capture.session import SessionWriter
+from capture.session import SessionWriter, check_disk_space
 from depthbench.errors import DepthbenchError
 from depthbench.fsutil import check_output_free
 
@@ -476,7 +476,8 @@ def default_writers() -> int:
 
 def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, force: bool = False,
            writers: int | None = None, buffer_s: float = 1.0, fsync: bool = False,
-           progress: TextIO | None = None, progress_every_s: float = 1.0, adaptive: bool = True) -> RecordResult:
+           progress: TextIO | None = None, progress_every_s: float = 1.0, adaptive: bool = True,
+           check_space: bool = True) -> RecordResult:
     """Record every sensor of ``rig`` into the session folder ``out``.
 
     Args:
@@ -491,6 +492,8 @@ def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, fo
         progress: stream for the live status line (per-stream frame rate and drops), or None.
         adaptive: while the queue is over an eighth full, write PNGs uncompressed (same pixels,
             larger files, ~8x less CPU) so a slow machine keeps up instead of dropping frames.
+        check_space: with ``seconds``, refuse (:class:`DiskSpaceError`) when the disk has less free
+            space than that many seconds of frames can take (:func:`capture.session.check_disk_space`).
 
     Returns a :class:`RecordResult`. Raises :class:`RigError`/:class:`DeviceError` before
     anything is written (bad rig, device missing, output exists), and :class:`RecordingError`
@@ -508,6 +511,8 @@ def record(rig: Rig, out: str | os.PathLike, *, seconds: float | None = None, fo
                     adaptive=adaptive)
     rec.open_drivers()
     try:
+        if check_space and seconds is not None:
+            check_disk_space(out, [st for d in rec.descriptions.values() for st in d.streams.values()], seconds)
         result = rec.run()
     except BaseException:
         rec.stop.set()

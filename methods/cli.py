@@ -125,6 +125,9 @@ def run_list(args) -> int:
 
 
 def run_run(args) -> int:
+    from depthbench.fsutil import check_output_outside
+
+    check_output_outside(args.out, [args.data], what="denoised output")
     method = get(args.name, **parse_params(args.param))
     result = denoise_dataset(method, args.data, args.out, force=args.force,
                              progress=False if args.no_progress else None)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from capture.errors import CaptureError
+from depthbench.fsutil import check_output_outside
 
 _EPILOG = ("The session is built under a temporary name and appears only when complete; an existing --out is "
            "replaced only with --force. Check the result with 'depthbench capture validate DIR'.")
@@ -102,6 +103,7 @@ def _report(result, args) -> int:
 def run_realsense(args) -> int:
     from capture.importers import import_realsense
 
+    check_output_outside(args.out, args.files, what="session folder")
     result = import_realsense(args.files, args.out, sensor_ids=args.sensor_id, roles=args.role,
                               streams=_streams(args.streams, ("depth", "color", "ir", "ir2")),
                               time_base=args.time_base, name=args.name, force=args.force, progress=not args.quiet)
@@ -111,6 +113,7 @@ def run_realsense(args) -> int:
 def run_azure_kinect(args) -> int:
     from capture.importers import import_azure_kinect
 
+    check_output_outside(args.out, [args.file], what="session folder")
     result = import_azure_kinect(args.file, args.out, sensor_id=args.sensor_id or args.role, role=args.role,
                                  streams=_streams(args.streams, ("depth", "color", "ir")), name=args.name,
                                  force=args.force, progress=not args.quiet)
@@ -141,6 +144,7 @@ def _intrinsics(text: str | None, size: str):
 def run_tum(args) -> int:
     from capture.importers import import_tum
 
+    check_output_outside(args.out, [args.folder], what="session folder")
     result = import_tum(args.folder, args.out, sensor_id=args.sensor_id or args.role, role=args.role,
                         intrinsics=_intrinsics(args.intrinsics, args.size), depth_scale=args.depth_scale, fps=args.fps,
                         with_color=not args.no_color, name=args.name, force=args.force, progress=not args.quiet)

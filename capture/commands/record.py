@@ -29,6 +29,9 @@ def add_parser(sub) -> None:
     p.add_argument("--no-adaptive", action="store_true",
                    help="always compress PNGs (default: write them uncompressed while the writer is falling behind)")
     p.add_argument("--fsync", action="store_true", help="fsync every frame and index row (survives power loss; slower)")
+    p.add_argument("--no-space-check", action="store_true",
+                   help="record even when --seconds of uncompressed frames would not fit the free disk space "
+                        "(checked by default)")
     p.add_argument("--quiet", action="store_true", help="no live progress line")
     p.set_defaults(func=run)
 
@@ -43,7 +46,8 @@ def run(args) -> int:
     try:
         result = record(rig, args.out, seconds=args.seconds, force=args.force, writers=args.writers,
                         buffer_s=args.buffer, fsync=args.fsync, progress=None if args.quiet else sys.stderr,
-                        progress_every_s=1.0 if sys.stderr.isatty() else 5.0, adaptive=not args.no_adaptive)
+                        progress_every_s=1.0 if sys.stderr.isatty() else 5.0, adaptive=not args.no_adaptive,
+                        check_space=not args.no_space_check)
     finally:
         signal.signal(signal.SIGTERM, previous)
     print(result.message)

@@ -36,7 +36,7 @@ def write_fixture(root: Path, *, encode_png16, encode_color) -> None:
     from align.dataset import AlignedDatasetWriter
     from capture.camera import Intrinsics
     from capture.session import SessionWriter
-    from methods.base import get
+    from methods import get
     from methods.output import DenoisedWriter
 
     p = pixels()

@@ -116,6 +116,14 @@ class AlignedDataset:
         rel = self.rows[i][f"{layer}_file"]
         return safe_join(self.root, rel, source=self.frames_path, error=AlignedFormatError) if rel else None
 
+    def check_frame_files(self) -> int:
+        """Check that every frame file of every layer is present, a regular file and readable,
+        without reading any (for a long job to fail at once rather than at the frame); returns
+        the number checked. Raises :class:`AlignedFormatError`."""
+        paths = (self.layer_path(i, layer) for i in range(len(self)) for layer in LAYERS)
+        return codec.check_frame_files((p for p in paths if p is not None), table=self.frames_path,
+                                       error=AlignedFormatError)
+
     def _layer(self, i: int, layer: str) -> np.ndarray | None:
         """The image of ``layer`` as stored (checked against its sha256 and the LQ image size)."""
         path = self.layer_path(i, layer)

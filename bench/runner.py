@@ -138,6 +138,8 @@ def resolve_datasets(paths: Iterable[str | os.PathLike | AlignedDataset]) -> lis
         out.append(AlignedDataset(p))
     if not out:
         raise DatasetError("no dataset given")
+    for ds in out:
+        ds.check_frame_files()   # every frame file present and readable before the long work
     seen: dict[str, AlignedDataset] = {}
     for ds in out:
         if len(ds) == 0:

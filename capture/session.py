@@ -310,12 +310,8 @@ class Session:
         n = 0
         for sid in self.sensors if sensors is None else sensors:
             table = self.sensors[sid].frames_path
-            for rel in self._frames[sid]["file"]:
-                path = self._safe(rel, self.root / table)
-                problem = codec.file_problem(path)
-                if problem:
-                    raise SessionFormatError(f"{path}: frame file listed in {table} is {problem}")
-                n += 1
+            paths = (self._safe(rel, self.root / table) for rel in self._frames[sid]["file"])
+            n += codec.check_frame_files(paths, table=table, error=SessionFormatError)
         return n
 
 

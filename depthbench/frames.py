@@ -213,6 +213,19 @@ def file_problem(path: str | os.PathLike) -> str | None:
     return None
 
 
+def check_frame_files(paths, *, table, error: type[Exception] = FrameError) -> int:
+    """Check that every frame file of ``paths`` (listed in the index ``table``) is present, a regular
+    file and readable, without reading any (:func:`file_problem`): for a long job to fail at once
+    rather than at the frame. Returns the number checked."""
+    n = 0
+    for path in paths:
+        problem = file_problem(path)
+        if problem:
+            raise error(f"{path}: frame file listed in {table} is {problem}")
+        n += 1
+    return n
+
+
 def read_frame_bytes(path: str | os.PathLike, *, sha256: str | None, table, what: str = "frame file",
                      error: type[Exception] = FrameError) -> bytes:
     """The bytes of the frame file ``path``, checked against ``sha256`` (from the index ``table``,

@@ -203,6 +203,7 @@ def denoise_dataset(method: Denoiser, data, out: str | os.PathLike, *, force: bo
 
     dataset = data if isinstance(data, AlignedDataset) else AlignedDataset(data)
     check_inputs(method, dataset)
+    dataset.check_frame_files()   # every frame file present and readable before the long work
     started = time.perf_counter()
     writer = DenoisedWriter(out, method, dataset_checksum=dataset.checksum, dataset_name=dataset.name,
                             dataset_path=str(dataset.root), depth_unit_m=dataset.depth_unit_m, force=force)

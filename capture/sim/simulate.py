@@ -94,7 +94,7 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
     try:
         writer = SessionWriter(out, session_manifest(plan), force=force, staged=True)
     except OSError as exc:
-        raise SimulationError(f"--out {out}: cannot create the session folder ({exc.strerror or exc})") from None
+        raise SimulationError(f"{out}: cannot create the session folder ({exc.strerror or exc})") from None
     timings = Timings()
     try:
         truth = TruthWriter(writer.root, plan)
@@ -104,7 +104,7 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         root = writer.close()
     except OSError as exc:
         writer.abort()
-        raise SimulationError(f"--out {out}: writing failed, nothing was kept ({exc.strerror or exc})") from None
+        raise SimulationError(f"{out}: writing failed, nothing was kept ({exc.strerror or exc})") from None
     except BaseException:
         writer.abort()
         raise

@@ -7,7 +7,6 @@ the warped HQ depth, their difference and the region of interest.
 """
 from __future__ import annotations
 
-import html
 from pathlib import Path
 
 import matplotlib
@@ -17,6 +16,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from align.time_shift import ShiftLoss  # noqa: E402
+from depthbench.markdown_html import html_page, markdown_to_html  # noqa: E402
+
+_CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto}table{border-collapse:collapse}"
+        "td,th{border:1px solid #ccc;padding:2px 8px}img{max-width:100%}blockquote{background:#fee;"
+        "padding:.5em;border-left:4px solid #c00}figure{margin:1em 0}figcaption{font-size:.85em;color:#555}")
+
+
+def _html(md: str, title: str) -> str:
+    """The report page: the Markdown rendered by markdown-it-py (figures link the PNGs beside it)."""
+    return html_page(markdown_to_html(md), title=title, css=_CSS)
 
 
 def _save(fig, path: Path) -> None:
@@ -137,7 +146,7 @@ def _example_figure(path: Path, example: dict) -> None:
 
 
 def _fmt_T(T) -> str:
-    rows = ["| | | | |", "|--:|--:|--:|--:|"]
+    rows = ["| R col 1 | R col 2 | R col 3 | t (m) |", "|--:|--:|--:|--:|"]
     for r in T.matrix:
         rows.append("| " + " | ".join(f"{x:+.6f}" for x in r) + " |")
     return "\n".join(rows)
@@ -180,58 +189,23 @@ def write_report(root: Path, setup, pf, table, example: dict, meta: dict) -> Pat
                                                                   if "jitter_rms_us" in v else "")
                                    for k, v in setup.clocks.items()) + ".",
         "", "## T_lq_hq (HQ depth camera -> LQ depth camera, metres)", "", _fmt_T(pf.T_lq_hq), "",
-        "## Loss against the time shift", "", "![loss](figures/loss_vs_shift.png)", "",
+        "## Loss against the time shift", "",
+        "![Robust eq. 31 loss against the time shift: coarse scan, and a zoom on the minimum with +-1 sigma]"
+        "(figures/loss_vs_shift.png)", "",
         "Each candidate Delta is scored by eq. 31 on the probe frames' features, with the LQ feature tracks "
         "interpolated at the HQ instant (see `align/time_shift.py`).", "",
-        "## Residuals", "", "![residuals](figures/residuals.png)", "", "![timeline](figures/timeline.png)", "",
+        "## Residuals", "", "![Residual histograms: feature reprojection (eq. 31), per-pair depth, pair time difference]"
+        "(figures/residuals.png)", "",
+        "![Per-pair depth residual and local time-shift estimates over the session](figures/timeline.png)", "",
     ]
     if example:
-        lines += ["## One frame", "", "![example](figures/example.png)", ""]
+        lines += ["## One frame", "", "![LQ colour and depth, the warped HQ depth, their difference and the region "
+                  "of interest](figures/example.png)", ""]
     md = "\n".join(lines)
     path = root / "report.md"
     path.write_text(md)
     (root / "report.html").write_text(_html(md, f"Alignment report: {setup.session.name}"))
     return path
-
-
-def _html(md: str, title: str) -> str:
-    """A minimal Markdown subset (headings, tables, images, quotes, paragraphs) as HTML."""
-    out = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
-           "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto}table{border-collapse:collapse}"
-           "td,th{border:1px solid #ccc;padding:2px 8px}img{max-width:100%}blockquote{background:#fee;"
-           "padding:.5em;border-left:4px solid #c00}</style></head><body>"]
-    table: list[str] = []
-    for line in md.splitlines() + [""]:
-        if line.startswith("|"):
-            cells = [c.strip() for c in line.strip("|").split("|")]
-            if not all(set(c) <= set("-: ") for c in cells):
-                table.append("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in cells) + "</tr>")
-            continue
-        if table:
-            out.append("<table>" + "".join(table) + "</table>")
-            table = []
-        if line.startswith("#"):
-            level = len(line) - len(line.lstrip("#"))
-            out.append(f"<h{level}>{_inline(line.lstrip('#').strip())}</h{level}>")
-        elif line.startswith("!["):
-            alt, src = line[2:].split("](", 1)
-            out.append(f"<p><img alt='{html.escape(alt)}' src='{html.escape(src.rstrip(')'))}'></p>")
-        elif line.startswith(">"):
-            out.append(f"<blockquote>{_inline(line.lstrip('> '))}</blockquote>")
-        elif line.strip():
-            out.append(f"<p>{_inline(line)}</p>")
-    out.append("</body></html>")
-    return "\n".join(out)
-
-
-def _inline(text: str) -> str:
-    import re
-
-    t = html.escape(text)
-    t = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", t)
-    t = re.sub(r"`(.+?)`", r"<code>\1</code>", t)
-    t = re.sub(r"\[(.+?)\]\((.+?)\)", r"<a href='\2'>\1</a>", t)
-    return t
 
 
 def write_rig_report(root: Path, session, rig, fits: dict, outputs: dict) -> Path:

@@ -11,8 +11,6 @@ weighs the same) with 95 % percentile bootstrap intervals: frames are resampled 
 """
 from __future__ import annotations
 
-import base64
-import html
 import warnings
 import re
 from dataclasses import dataclass, field
@@ -25,6 +23,7 @@ from bench import plots
 from bench import results as R
 from bench.metrics import BINNED
 from depthbench.fsutil import atomic_write_text, staged_directory
+from depthbench.markdown_html import html_page, markdown_to_html
 
 #: Table I of the seed report: column order and labels; names are matched after lower-casing and
 #: removing non-alphanumerics, with the aliases of the registered implementations.
@@ -192,47 +191,34 @@ def _cell(s: pd.DataFrame, metric: str, key: str, *, n_total: int) -> str:
 
 
 class _Doc:
-    """Builds the Markdown and the HTML side by side."""
+    """The report as Markdown blocks; each keeps the CSS class its HTML rendering gets."""
 
     def __init__(self) -> None:
-        self.md: list[str] = []
-        self.html: list[str] = []
+        self.blocks: list[tuple[str, str | None, list[str] | None]] = []    # (markdown, class, table row classes)
+        self.figures: dict[str, bytes] = {}                                 # file name in figures/ -> PNG
 
     def heading(self, text: str, level: int = 2) -> None:
-        self.md.append(f"{'#' * level} {text}\n")
-        self.html.append(f"<h{level}>{html.escape(text)}</h{level}>")
+        self.blocks.append((f"{'#' * level} {text}\n", None, None))
 
     def para(self, text: str, *, cls: str | None = None) -> None:
-        self.md.append(text + "\n")
-        c = f' class="{cls}"' if cls else ""
-        self.html.append(f"<p{c}>{_inline_html(text)}</p>")
+        self.blocks.append((text + "\n", cls, None))
 
     def table(self, header: list[str], rows: list[list[str]], *, row_classes: list[str] | None = None) -> None:
-        self.md.append("| " + " | ".join(header) + " |")
-        self.md.append("|" + "|".join([":--"] + ["--:"] * (len(header) - 1)) + "|")
-        for r in rows:
-            self.md.append("| " + " | ".join(x.replace("|", "\\|") for x in r) + " |")
-        self.md.append("")
-        h = ["<table><thead><tr>" + "".join(f"<th>{html.escape(x)}</th>" for x in header) + "</tr></thead><tbody>"]
-        for k, r in enumerate(rows):
-            c = f' class="{row_classes[k]}"' if row_classes and row_classes[k] else ""
-            h.append(f"<tr{c}>" + "".join(f"<td>{_inline_html(x)}</td>" for x in r) + "</tr>")
-        h.append("</tbody></table>")
-        self.html.append("".join(h))
+        lines = ["| " + " | ".join(header) + " |", "|" + "|".join([":--"] + ["--:"] * (len(header) - 1)) + "|"]
+        lines += ["| " + " | ".join(x.replace("|", "\\|") for x in r) + " |" for r in rows]
+        self.blocks.append(("\n".join(lines) + "\n", None, row_classes))
 
-    def figure(self, rel: str, png: bytes, alt: str) -> None:
-        self.md.append(f"![{alt}]({rel})\n")
-        b64 = base64.b64encode(png).decode()
-        self.html.append(f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
-                         f"<figcaption>{html.escape(alt)}</figcaption></figure>")
+    def figure(self, name: str, png: bytes, alt: str) -> None:
+        self.figures[name] = png
+        self.blocks.append((f"![{alt}](figures/{name})\n", None, None))
 
+    def markdown(self) -> str:
+        return "\n".join(md for md, _, _ in self.blocks)
 
-def _inline_html(text: str) -> str:
-    t = html.escape(text)
-    t = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", t)
-    t = re.sub(r"`(.+?)`", r"<code>\1</code>", t)
-    t = re.sub(r"(?<![\w*])\*(?!\s)(.+?)(?<!\s)\*(?![\w*])", r"<em>\1</em>", t)
-    return t
+    def html(self) -> str:
+        images = {f"figures/{name}": png for name, png in self.figures.items()}
+        body = "".join(markdown_to_html(md, cls=cls, row_classes=rows, images=images) for md, cls, rows in self.blocks)
+        return html_page(body, title="depthbench leaderboard", css=_CSS)
 
 
 _CSS = """
@@ -252,8 +238,7 @@ code{background:#f3f3f3;padding:0 .2em}
 
 
 # ----------------------------------------------------------------------------------- report
-def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int, seed: int,
-                     figures: dict[str, bytes]) -> None:
+def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int, seed: int) -> None:
     truth = reference == "truth"
     labels = method_labels(df[df["reference"] == reference], include_hq_sensor=truth)
     if not labels:
@@ -266,18 +251,11 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
     rows = [[name] + [_cell(s, metric, k, n_total=n_frames) for k in labels] for metric, name in SUMMARY_METRICS.items()]
     classes = [""] * len(rows)
     if not truth:
-        slots = {table_i_slot(df.loc[df["method_key"] == k, "method"].iloc[0]): k for k in labels}
         rows.append(["Published (seed report Table I), other data: not comparable"] + [""] * len(labels))
         classes.append("separator")
-        for pub in PUBLISHED:
-            cells = []
-            for k in labels:
-                slot = table_i_slot(df.loc[df["method_key"] == k, "method"].iloc[0])
-                name = TABLE_I[slot][0] if slot is not None else None
-                v = pub["values"].get(name)
-                cells.append(_fmt(v) if v is not None and slots.get(slot) == k else "")
-            rows.append([pub["label"]] + cells)
-            classes.append("published")
+        published = _published_rows(df, labels)
+        rows += published
+        classes += ["published"] * len(published)
     doc.table(header, rows, row_classes=classes)
     doc.para(f"Mean over {n_frames} frames of the per-frame value, with its 95 % bootstrap interval "
              f"({n_boot} resamples of the frames, seed {seed}, the same resamples for every column). "
@@ -290,11 +268,10 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
                  "method's error against the HQ reference that is the reference's own error.", cls="note")
     else:
         doc.para(PUBLISHED_NOTE, cls="note")
-    name = f"summary_{reference}.png"
-    figures[name] = plots.summary_bars(s, labels, metrics={"rmse_mm": "RMSE (mm)", "mae_mm": "MAE (mm)",
-                                                           "plane_fit_rmse_mm": "plane-fit RMSE (mm)"},
-                                       title=f"against the {'truth' if truth else 'HQ reference'} (95 % bootstrap intervals)")
-    doc.figure(f"figures/{name}", figures[name], f"Summary against the {'truth' if truth else 'HQ reference'}")
+    png = plots.summary_bars(s, labels, metrics={"rmse_mm": "RMSE (mm)", "mae_mm": "MAE (mm)",
+                                                 "plane_fit_rmse_mm": "plane-fit RMSE (mm)"},
+                             title=f"against the {'truth' if truth else 'HQ reference'} (95 % bootstrap intervals)")
+    doc.figure(f"summary_{reference}.png", png, f"Summary against the {'truth' if truth else 'HQ reference'}")
 
 
 def _sequence_section(doc: _Doc, df: pd.DataFrame) -> None:
@@ -344,6 +321,118 @@ def _coverage_section(doc: _Doc, df: pd.DataFrame, config: dict | None) -> None:
                  "pixels empty.", cls="note")
 
 
+def _published_rows(df: pd.DataFrame, labels: dict[str, str]) -> list[list[str]]:
+    """The seed report's Table I numbers under the columns of the same methods (one column per slot)."""
+    slot_of = {k: table_i_slot(df.loc[df["method_key"] == k, "method"].iloc[0]) for k in labels}
+    owner = {slot: k for k, slot in slot_of.items()}     # several versions of a method: the last column shows them
+    rows = []
+    for pub in PUBLISHED:
+        cells = []
+        for k in labels:
+            slot = slot_of[k]
+            v = pub["values"].get(TABLE_I[slot][0]) if slot is not None else None
+            cells.append(_fmt(v) if v is not None and owner.get(slot) == k else "")
+        rows.append([pub["label"]] + cells)
+    return rows
+
+
+def _header_section(doc: _Doc, df: pd.DataFrame, datasets: pd.DataFrame, config: dict | None) -> None:
+    n_datasets = len(datasets)
+    n_frames = df[["dataset_checksum", "frame"]].drop_duplicates().shape[0]
+    doc.heading("depthbench leaderboard", 1)
+    cfg_text = (f"plane-fit radius {config['radius_m'] * 1000:g} mm, at least {config['min_neighbors']} neighbours, "
+                f"depth bins of {config['depth_bin_m']:g} m" if config else "metric parameters: see results.json")
+    doc.para(f"{n_datasets} dataset(s), {n_frames} frames, {len(method_labels(df))} method(s); {len(df)} result rows "
+             f"(schema version {R.SCHEMA_VERSION}); {cfg_text}. Rebuilt from `results.parquet` by "
+             "`depthbench bench report`.")
+
+
+def _depth_section(doc: _Doc, df: pd.DataFrame, config: dict | None) -> None:
+    doc.heading("Error against depth")
+    for ref in ("hq", "truth"):
+        curves = depth_curves(df, ref)
+        if curves.empty:
+            continue
+        labels = method_labels(df[df["reference"] == ref], include_hq_sensor=(ref == "truth"))
+        title = f"against the {'HQ reference' if ref == 'hq' else 'truth'}, pooled over frames, by reference depth"
+        png = plots.error_vs_depth(curves, labels, title=title)
+        if ref == "hq":
+            doc.para(f"Bins of {config['depth_bin_m'] if config else 0.25:g} m by reference depth, pooled over frames "
+                     f"(MAE weighted by pixels, plane-fit RMSE by points); bins with less than "
+                     f"{MIN_BIN_SHARE:.1%} of a method's pixels are left out.", cls="note")
+        doc.figure(f"error_vs_depth_{ref}.png", png,
+                   f"Error against depth ({'HQ reference' if ref == 'hq' else 'truth'})")
+
+
+def _qualitative_section(doc: _Doc, df: pd.DataFrame, root: Path, datasets: pd.DataFrame, max_shown: int) -> None:
+    doc.heading("Qualitative comparison")
+    labels_all = method_labels(df)
+    shown = 0
+    for r in datasets.itertuples():
+        if shown >= max_shown:
+            break
+        inputs = R.load_npz(R.preview_path(root, r.dataset_checksum))
+        if inputs is None:
+            continue
+        denoised = {}
+        for k in df.loc[(df["dataset_checksum"] == r.dataset_checksum), "method_key"].unique():
+            p = R.load_npz(R.preview_path(root, r.dataset_checksum, k))
+            if p is not None:
+                denoised[str(p["method_key"])] = p["depth"]
+        labels = {k: v for k, v in labels_all.items() if k in denoised}
+        frame = int(inputs["frame"])
+        png = plots.qualitative(inputs, denoised, labels, title=f"{r.dataset} (sequence {r.sequence}), frame {frame}")
+        doc.figure(f"qualitative_{r.dataset_checksum[:16]}.png", png,
+                   f"{r.dataset}, frame {frame}: depth and shaded normals")
+        shown += 1
+    if shown == 0:
+        doc.para("No depth previews in this results folder (the table alone cannot draw depth images).", cls="note")
+
+
+def _inventory_section(doc: _Doc, df: pd.DataFrame, datasets: pd.DataFrame) -> None:
+    """The methods (keys, versions) and the datasets (sequence, frames, checksum) of the table."""
+    doc.heading("Methods")
+    mrows = []
+    for k, label in method_labels(df, include_hq_sensor=True).items():
+        m = df.loc[df["method_key"] == k].iloc[0]
+        mrows.append([label, f"`{k}`", str(m["method_version"])])
+    doc.table(["column", "method key (name@version(parameters))", "version"], mrows)
+    doc.heading("Datasets")
+    drows = []
+    for r in datasets.itertuples():
+        n = df.loc[df["dataset_checksum"] == r.dataset_checksum, "frame"].nunique()
+        drows.append([r.dataset, r.sequence, str(n), f"`{r.dataset_checksum[:16]}`"])
+    doc.table(["dataset", "sequence", "frames", "checksum"], drows)
+
+
+DEFINITIONS = (
+    "**MSE / RMSE / MAE**: over pixels valid in both the output and the reference, inside the ROI, in "
+    "millimetres (SSDD's comparison). **Plane-fit RMSE** (DDD): for each reference point, the least-squares "
+    "plane through all reference points within the radius; the distance from that plane to the closest "
+    "point of the denoised cloud; RMSE over the points (too few neighbours or line-like neighbourhoods are "
+    "excluded and counted). **Fill rate**: share of reference-valid ROI pixels the method leaves valid. "
+    "**Normal angle**: mean angle between central-difference normals of output and reference.")
+
+
+def build_report(df: pd.DataFrame, *, root: Path, config: dict | None, n_boot: int = 2000, seed: int = 0,
+                 max_qualitative: int = 4) -> _Doc:
+    """The whole leaderboard document of the results table ``df`` (previews read from ``root``)."""
+    datasets = df[["dataset", "dataset_checksum", "sequence"]].drop_duplicates().sort_values("dataset")
+    doc = _Doc()
+    _header_section(doc, df, datasets, config)
+    _summary_section(doc, df, "hq", n_boot=n_boot, seed=seed)
+    if (df["reference"] == "truth").any():
+        _summary_section(doc, df, "truth", n_boot=n_boot, seed=seed)
+    _sequence_section(doc, df)
+    _depth_section(doc, df, config)
+    _qualitative_section(doc, df, root, datasets, max_qualitative)
+    _coverage_section(doc, df, config)
+    _inventory_section(doc, df, datasets)
+    doc.heading("Definitions")
+    doc.para(DEFINITIONS)
+    return doc
+
+
 def write_report(results_dir: str | Path, *, table: pd.DataFrame | None = None, n_boot: int = 2000, seed: int = 0,
                  max_qualitative: int = 4) -> ReportPaths:
     """Write ``leaderboard.md``, ``leaderboard.html`` and ``figures/`` into ``results_dir``.
@@ -365,92 +454,13 @@ def write_report(results_dir: str | Path, *, table: pd.DataFrame | None = None, 
         meta = R.read_manifest(root)
     except R.ResultsFormatError:
         meta = None
-    config = meta["metrics"] if meta else None
-    doc = _Doc()
-    figures: dict[str, bytes] = {}
-    datasets = df[["dataset", "dataset_checksum", "sequence"]].drop_duplicates().sort_values("dataset")
-    n_frames = df[["dataset_checksum", "frame"]].drop_duplicates().shape[0]
-    labels_all = method_labels(df)
-    doc.heading("depthbench leaderboard", 1)
-    cfg_text = (f"plane-fit radius {config['radius_m'] * 1000:g} mm, at least {config['min_neighbors']} neighbours, "
-                f"depth bins of {config['depth_bin_m']:g} m" if config else "metric parameters: see results.json")
-    doc.para(f"{len(datasets)} dataset(s), {n_frames} frames, {len(labels_all)} method(s); {len(df)} result rows "
-             f"(schema version {R.SCHEMA_VERSION}); {cfg_text}. Rebuilt from `results.parquet` by "
-             "`depthbench bench report`.")
-    _summary_section(doc, df, "hq", n_boot=n_boot, seed=seed, figures=figures)
-    if (df["reference"] == "truth").any():
-        _summary_section(doc, df, "truth", n_boot=n_boot, seed=seed, figures=figures)
-    _sequence_section(doc, df)
-
-    doc.heading("Error against depth")
-    for ref in ("hq", "truth"):
-        curves = depth_curves(df, ref)
-        if curves.empty:
-            continue
-        labels = method_labels(df[df["reference"] == ref], include_hq_sensor=(ref == "truth"))
-        name = f"error_vs_depth_{ref}.png"
-        title = f"against the {'HQ reference' if ref == 'hq' else 'truth'}, pooled over frames, by reference depth"
-        figures[name] = plots.error_vs_depth(curves, labels, title=title)
-        if ref == "hq":
-            doc.para(f"Bins of {config['depth_bin_m'] if config else 0.25:g} m by reference depth, pooled over frames "
-                     f"(MAE weighted by pixels, plane-fit RMSE by points); bins with less than "
-                     f"{MIN_BIN_SHARE:.1%} of a method's pixels are left out.", cls="note")
-        doc.figure(f"figures/{name}", figures[name], f"Error against depth ({'HQ reference' if ref == 'hq' else 'truth'})")
-
-    doc.heading("Qualitative comparison")
-    shown = 0
-    for r in datasets.itertuples():
-        if shown >= max_qualitative:
-            break
-        inputs = R.load_npz(R.preview_path(root, r.dataset_checksum))
-        if inputs is None:
-            continue
-        keys = df.loc[(df["dataset_checksum"] == r.dataset_checksum), "method_key"].unique()
-        denoised = {}
-        for k in keys:
-            p = R.load_npz(R.preview_path(root, r.dataset_checksum, k))
-            if p is not None:
-                denoised[str(p["method_key"])] = p["depth"]
-        labels = {k: v for k, v in labels_all.items() if k in denoised}
-        name = f"qualitative_{r.dataset_checksum[:16]}.png"
-        figures[name] = plots.qualitative(inputs, denoised, labels,
-                                          title=f"{r.dataset} (sequence {r.sequence}), frame {int(inputs['frame'])}")
-        doc.figure(f"figures/{name}", figures[name], f"{r.dataset}, frame {int(inputs['frame'])}: depth and shaded normals")
-        shown += 1
-    if shown == 0:
-        doc.para("No depth previews in this results folder (the table alone cannot draw depth images).", cls="note")
-
-    _coverage_section(doc, df, config)
-
-    doc.heading("Methods")
-    mrows = []
-    for k, label in method_labels(df, include_hq_sensor=True).items():
-        m = df.loc[df["method_key"] == k].iloc[0]
-        mrows.append([label, f"`{k}`", str(m["method_version"])])
-    doc.table(["column", "method key (name@version(parameters))", "version"], mrows)
-    doc.heading("Datasets")
-    drows = []
-    for r in datasets.itertuples():
-        n = df.loc[df["dataset_checksum"] == r.dataset_checksum, "frame"].nunique()
-        drows.append([r.dataset, r.sequence, str(n), f"`{r.dataset_checksum[:16]}`"])
-    doc.table(["dataset", "sequence", "frames", "checksum"], drows)
-    doc.heading("Definitions")
-    doc.para("**MSE / RMSE / MAE**: over pixels valid in both the output and the reference, inside the ROI, in "
-             "millimetres (SSDD's comparison). **Plane-fit RMSE** (DDD): for each reference point, the least-squares "
-             "plane through all reference points within the radius; the distance from that plane to the closest "
-             "point of the denoised cloud; RMSE over the points (too few neighbours or line-like neighbourhoods are "
-             "excluded and counted). **Fill rate**: share of reference-valid ROI pixels the method leaves valid. "
-             "**Normal angle**: mean angle between central-difference normals of output and reference.")
-
+    doc = build_report(df, root=root, config=meta["metrics"] if meta else None, n_boot=n_boot, seed=seed,
+                       max_qualitative=max_qualitative)
     figs_dir = root / "figures"
-    written = []
     with staged_directory(figs_dir, force=True, what="figures folder") as tmp:
-        for name, png in figures.items():
+        for name, png in doc.figures.items():
             (tmp / name).write_bytes(png)
-            written.append(figs_dir / name)
     md_path, html_path = root / "leaderboard.md", root / "leaderboard.html"
-    atomic_write_text(md_path, "\n".join(doc.md))
-    page = ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>depthbench leaderboard</title>"
-            f"<style>{_CSS}</style></head><body>" + "\n".join(doc.html) + "</body></html>\n")
-    atomic_write_text(html_path, page)
-    return ReportPaths(md_path, html_path, written)
+    atomic_write_text(md_path, doc.markdown())
+    atomic_write_text(html_path, doc.html())
+    return ReportPaths(md_path, html_path, [figs_dir / name for name in doc.figures])

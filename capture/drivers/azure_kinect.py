@@ -297,18 +297,33 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())[:300]
 
 
-def open_mkv(path: str | os.PathLike, *, streams: tuple[str, ...] = ("depth", "color", "ir")) -> AzureKinectRecording:
-    """Open an Azure Kinect recording; raises :class:`SessionFormatError` (one line) for unusable files.
+@dataclass
+class _MkvContents:
+    """What :func:`_read_container` finds in a recording's container (no frame is decoded)."""
 
-    Args:
-        path: the ``.mkv`` file.
-        streams: which of ``depth`` (required), ``color``, ``ir`` to read when present.
-    """
+    tags: dict[str, str]                 # K4A_* tags of the file and its tracks
+    tracks: dict[str, _Track]            # depth (always), color, ir
+    calibration_text: bytes | None       # the calibration.json attachment
+    period_ns: int | None                # the first depth packet's duration (Matroska DefaultDuration)
+
+
+def _track_of(path: Path, s) -> _Track | None:
+    """The :class:`_Track` of a PyAV video stream titled COLOR, DEPTH, IR or DEPTH_IR (None for others)."""
+    title = (s.metadata or {}).get("title", "")
+    if s.type != "video" or title not in ("COLOR", "DEPTH", "IR", "DEPTH_IR"):
+        return None
+    name = {"COLOR": "color", "DEPTH": "depth", "IR": "ir", "DEPTH_IR": "ir"}[title]
+    tag = s.codec_context.codec_tag if s.codec_context is not None else ""
+    codec = _FOURCC_FORMATS.get(tag) or ("mjpeg" if s.codec_context and s.codec_context.name == "mjpeg" else None)
+    if codec is None or (name != "color" and codec != "b16g"):
+        raise SessionFormatError(f"{path}: track {title} has unsupported codec {tag or '?'}")
+    return _Track(name, s.index, codec, s.codec_context.width, s.codec_context.height, s.time_base)
+
+
+def _read_container(path: Path) -> _MkvContents:
+    """Tags, tracks, calibration attachment and frame period of a Matroska file (one-line errors)."""
     import av
 
-    path = Path(path)
-    if not path.is_file():
-        raise SessionFormatError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
     try:
         container = av.open(str(path))
     except (av.error.FFmpegError, OSError) as exc:
@@ -316,52 +331,27 @@ def open_mkv(path: str | os.PathLike, *, streams: tuple[str, ...] = ("depth", "c
     with container:
         if "matroska" not in container.format.name:
             raise SessionFormatError(f"{path}: not a Matroska file (format {container.format.name})")
-        tags = {k: str(v) for k, v in container.metadata.items()}
-        tracks: dict[str, _Track] = {}
-        calibration_text = None
-        period_ns = None
+        out = _MkvContents({k: str(v) for k, v in container.metadata.items()}, {}, None, None)
         for s in container.streams:
-            title = (s.metadata or {}).get("title", "")
-            tags.update({k: str(v) for k, v in (s.metadata or {}).items() if k.startswith("K4A_")})
+            out.tags.update({k: str(v) for k, v in (s.metadata or {}).items() if k.startswith("K4A_")})
             if s.type == "attachment":
                 if s.name == "calibration.json" or "K4A_CALIBRATION_FILE" in (s.metadata or {}):
-                    calibration_text = bytes(s.data) if s.data is not None else None
-                continue
-            if s.type != "video" or title not in ("COLOR", "DEPTH", "IR", "DEPTH_IR"):
-                continue
-            name = {"COLOR": "color", "DEPTH": "depth", "IR": "ir", "DEPTH_IR": "ir"}[title]
-            tag = s.codec_context.codec_tag if s.codec_context is not None else ""
-            codec = _FOURCC_FORMATS.get(tag) or ("mjpeg" if s.codec_context and s.codec_context.name == "mjpeg" else None)
-            if codec is None or (name != "color" and codec != "b16g"):
-                raise SessionFormatError(f"{path}: track {title} has unsupported codec {tag or '?'}")
-            tracks[name] = _Track(name, s.index, codec, s.codec_context.width, s.codec_context.height, s.time_base)
-        if "depth" not in tracks:
+                    out.calibration_text = bytes(s.data) if s.data is not None else None
+            elif (track := _track_of(path, s)) is not None:
+                out.tracks[track.name] = track
+        if "depth" not in out.tracks:
             raise SessionFormatError(f"{path}: the recording has no depth stream (tracks: "
-                                     f"{', '.join(sorted(tracks)) or 'none'})")
-        # frame period from the first depth packet's duration (Matroska DefaultDuration)
-        for packet in container.demux(container.streams[tracks["depth"].index]):
+                                     f"{', '.join(sorted(out.tracks)) or 'none'})")
+        for packet in container.demux(container.streams[out.tracks["depth"].index]):
             if packet.duration:
-                period_ns = int(round(packet.duration * packet.time_base * 1e9))
+                out.period_ns = int(round(packet.duration * packet.time_base * 1e9))
             break
-    if calibration_text is None:
-        raise SessionFormatError(f"{path}: no calibration.json attachment (factory calibration missing)")
-    depth_mode = tags.get("K4A_DEPTH_MODE")
-    if depth_mode is None:
-        raise SessionFormatError(f"{path}: no K4A_DEPTH_MODE tag")
-    color_size = (tracks["color"].width, tracks["color"].height) if "color" in tracks else None
-    try:
-        calib = parse_calibration(calibration_text, depth_mode=depth_mode, color_size=color_size,
-                                  where=f"{path}: calibration.json")
-    except CalibrationError as exc:
-        raise SessionFormatError(str(exc)) from None
-    d = tracks["depth"]
-    if (d.width, d.height) != (calib.depth_intrinsics.width, calib.depth_intrinsics.height):
-        raise SessionFormatError(f"{path}: depth track is {d.width}x{d.height} but mode {depth_mode} is "
-                                 f"{calib.depth_intrinsics.width}x{calib.depth_intrinsics.height}")
-    fps = 1e9 / period_ns if period_ns else 30.0
-    fps = min((5.0, 15.0, 30.0), key=lambda f: abs(f - fps))
-    period_us = int(round(1e6 / fps))
-    selected = {n: t for n, t in tracks.items() if n in streams or n == "depth"}
+    return out
+
+
+def _sensor_description(path: Path, tags: dict[str, str], calib: AzureCalibration, selected: dict[str, _Track], *,
+                        fps: float) -> SensorDescription:
+    """The session's description of the selected tracks (streams, serial, firmware, clock facts)."""
     descs: dict[str, StreamDescription] = {}
     for name, t in selected.items():
         if name == "color":
@@ -378,13 +368,48 @@ def open_mkv(path: str | os.PathLike, *, streams: tuple[str, ...] = ("depth", "c
              "depth_delay_off_color_us": int(tags.get("K4A_DEPTH_DELAY_NS", "0")) // 1000}
     if "K4A_SUBORDINATE_DELAY_NS" in tags:
         clock["subordinate_delay_off_master_us"] = int(tags["K4A_SUBORDINATE_DELAY_NS"]) // 1000
-    desc = SensorDescription(model="Azure Kinect DK", serial=tags.get("K4A_DEVICE_SERIAL_NUMBER") or calib.serial or "unknown",
+    return SensorDescription(model="Azure Kinect DK", serial=tags.get("K4A_DEVICE_SERIAL_NUMBER") or calib.serial or "unknown",
                              streams=descs, firmware=firmware, technology="tof",
                              T_depth_color=calib.T_depth_color if "color" in selected else None, clock=clock)
+
+
+def open_mkv(path: str | os.PathLike, *, streams: tuple[str, ...] = ("depth", "color", "ir")) -> AzureKinectRecording:
+    """Open an Azure Kinect recording; raises :class:`SessionFormatError` (one line) for unusable files.
+
+    Args:
+        path: the ``.mkv`` file.
+        streams: which of ``depth`` (required), ``color``, ``ir`` to read when present.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise SessionFormatError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
+    mkv = _read_container(path)
+    tags, tracks = mkv.tags, mkv.tracks
+    if mkv.calibration_text is None:
+        raise SessionFormatError(f"{path}: no calibration.json attachment (factory calibration missing)")
+    depth_mode = tags.get("K4A_DEPTH_MODE")
+    if depth_mode is None:
+        raise SessionFormatError(f"{path}: no K4A_DEPTH_MODE tag")
+    color_size = (tracks["color"].width, tracks["color"].height) if "color" in tracks else None
+    try:
+        calib = parse_calibration(mkv.calibration_text, depth_mode=depth_mode, color_size=color_size,
+                                  where=f"{path}: calibration.json")
+    except CalibrationError as exc:
+        raise SessionFormatError(str(exc)) from None
+    d = tracks["depth"]
+    if (d.width, d.height) != (calib.depth_intrinsics.width, calib.depth_intrinsics.height):
+        raise SessionFormatError(f"{path}: depth track is {d.width}x{d.height} but mode {depth_mode} is "
+                                 f"{calib.depth_intrinsics.width}x{calib.depth_intrinsics.height}")
+    fps = 1e9 / mkv.period_ns if mkv.period_ns else 30.0
+    fps = min((5.0, 15.0, 30.0), key=lambda f: abs(f - fps))
+    selected = {n: t for n, t in tracks.items() if n in streams or n == "depth"}
+    desc = _sensor_description(path, tags, calib, selected, fps=fps)
     notes = {"depth_mode": depth_mode, "color_mode": tags.get("K4A_COLOR_MODE"),
              "metric_radius": {"depth": calib.depth.metric_radius} | (
                  {"color": calib.color.metric_radius} if calib.color else {})}
-    return AzureKinectRecording(path, desc, calib, tags, period_us, clock["start_offset_us"], selected, notes)
+    return AzureKinectRecording(path=path, description=desc, calibration=calib, tags=tags,
+                                period_us=int(round(1e6 / fps)), start_offset_us=desc.clock["start_offset_us"],
+                                tracks=selected, notes=notes)
 
 
 # ============================================================================ driver (recording playback)

@@ -15,8 +15,9 @@ convolution (holes of the input never reach the output, the mask grows by the ke
 not divisible by 8 are padded (zeros, mask 0) and cropped back.
 
 The released network regresses the depth directly (and stops at 64 channels); ``residual=True``
-(default) adds the input depth where it is valid, so the untrained network is the identity on
-measured pixels, which short CPU trainings need. Depth in and out is metres.
+(default) adds the input depth where it is valid, and its last layer starts 100x smaller than the
+default initialisation, so the untrained network is nearly the identity on measured pixels, which
+short CPU trainings need. Depth in and out is metres.
 """
 from __future__ import annotations
 
@@ -57,6 +58,10 @@ class DDDNet(nn.Module):
         self.up3, self.up2, self.up1 = _Up(c[4], c[3]), _Up(c[3], c[2]), _Up(c[2], c[1])
         self.out1 = PartialBlock(c[1], c[0])
         self.out2 = PartialBlock(c[0], 1, act=False)
+        if residual:  # start near the identity: a small last layer (not zero, so every layer gets gradients)
+            with torch.no_grad():
+                self.out2.conv.weight.mul_(0.01)
+                self.out2.conv.bias.zero_()
 
     @staticmethod
     def _run(layers, x, m):

@@ -10,7 +10,8 @@ without normalisation at the bottom, then per scale the skip of that scale conca
 stride-2 3x3 transposed convolution halving the channels, the full-resolution skip concatenated,
 a 3x3 convolution to one channel with ``tanh``, added to the input and clipped to ``[-1, 1]``.
 Leaky ReLU (slope 0.2) everywhere else. Input sizes that are not multiples of ``2**downs`` are
-padded (edge replicated) and cropped back.
+padded (edge replicated) and cropped back. The last layers start small (:func:`_small`), so an
+untrained net is nearly the identity.
 
 :class:`RefineNet` (Fig. 6, hypercolumn): depth and grey-image branches (3x3, 8 channels each),
 hypercolumns at three scales (16, 32, 64 channels; 2x2 max pooling between them; coarse maps
@@ -43,6 +44,14 @@ def _conv(cin: int, cout: int, k: int = 3, stride: int = 1) -> nn.Conv2d:
     return nn.Conv2d(cin, cout, k, stride=stride, padding=k // 2)
 
 
+def _small(conv: nn.Conv2d) -> None:
+    """Scale a last layer's initial weights by 0.01 and zero its bias: the residual nets start near the
+    identity (not exactly, so that every layer receives gradients from the first step)."""
+    with torch.no_grad():
+        conv.weight.mul_(0.01)
+        conv.bias.zero_()
+
+
 class ResidualBlock(nn.Module):
     """``x + conv(act(conv(x)))`` followed by the activation; no normalisation."""
 
@@ -68,6 +77,7 @@ class DenoiseNet(nn.Module):
             nn.ConvTranspose2d(2 * width * 2 ** i, width * 2 ** (i - 1) if i > 0 else width, 3, stride=2,
                                padding=1, output_padding=1) for i in range(downs, 0, -1))
         self.last = _conv(2 * width, 1)
+        _small(self.last)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h, w = x.shape[-2:]
@@ -96,6 +106,8 @@ class RefineNet(nn.Module):
         self.c3, self.c4 = _conv(2 * width, 2 * width), _conv(2 * width, 2 * width)
         self.c5, self.c6, self.c7 = _conv(4 * width, 4 * width), _conv(4 * width, 4 * width), _conv(4 * width, 4 * width)
         self.f1, self.f2, self.f3 = _conv(7 * width, width, 1), _conv(width, max(1, width // 4), 1), _conv(max(1, width // 4), 1, 1)
+        if residual:
+            _small(self.f3)
 
     def forward(self, depth: torch.Tensor, grey: torch.Tensor) -> torch.Tensor:
         act = lambda t: F.leaky_relu(t, SLOPE)  # noqa: E731

@@ -3,7 +3,7 @@
 Conventions (those of :class:`capture.camera.Intrinsics`): pixel ``(u, v)`` has its centre at
 integer coordinates, a depth camera point is ``((u - cx) z / fx, (v - cy) z / fy, z)`` in metres,
 ``x`` right, ``y`` down, ``z`` forward. Shapes are NCHW: depth ``(B, 1, H, W)`` metres, points
-and normals ``(B, 3, H, W)``, intrinsics ``(B, 4)`` as ``fx, fy, cx, cy`` (pixels) or ``(4,)``.
+and normals ``(B, 3, H, W)``, intrinsics ``(B, 4)`` as ``fx, fy, cx, cy`` (pixels), or ``(1, 4)`` / ``(4,)`` for the whole batch.
 
 Normals use the four direct neighbours (DDRNet's depth-to-normal layer, seed III-A): the
 tangents are the central differences ``P(u+1) - P(u-1)`` and ``P(v+1) - P(v-1)``, the normal is
@@ -18,8 +18,8 @@ import torch.nn.functional as F
 
 def _intrinsics(K: torch.Tensor, batch: int, like: torch.Tensor) -> torch.Tensor:
     K = torch.as_tensor(K, dtype=like.dtype, device=like.device)
-    if K.ndim == 1:
-        K = K.expand(batch, 4)
+    if K.ndim == 1 or K.shape[0] == 1:
+        K = K.reshape(1, 4).expand(batch, 4)
     return K.reshape(batch, 4, 1, 1)
 
 

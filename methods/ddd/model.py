@@ -1,0 +1,101 @@
+"""DDD's multi-view training step (seed Fig. 7, eq. 21-27) and single-view inference.
+
+Training: the shared autoencoder denoises each of the ``V`` views of a sample; for every target
+view ``t`` the other views' colours are splatted into ``t`` with their *predicted* depths
+(:func:`methods.ddd.splatting.render_view`, eq. 21) and compared with ``t``'s own colour over the
+pixels where ``t`` has a measurement and something landed (eq. 23-25); BerHu ties each prediction to
+its own measurement (eq. 26) and the surface prior smooths its normals (eq. 27). Inference: one
+depth map in, one out.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from methods.ddd.losses import DDDLoss, DDDWeights
+from methods.ddd.net import DDDNet
+from methods.ddd.splatting import render_view
+from methods.nn.geometry import normals_from_depth
+
+
+@dataclass
+class ModelConfig:
+    """``width``: first channel step (8 -> 16 -> 32 -> 64 -> 128); ``residual``: add the input depth."""
+
+    width: int = 8
+    residual: bool = True
+
+    def __post_init__(self) -> None:
+        if self.width < 1:
+            raise ValueError(f"model.width must be >= 1, got {self.width}")
+
+
+@dataclass
+class LossConfig:
+    """Eq. 22-27: weights (sum 1), ``alpha``, Charbonnier ``gamma``, BerHu ``c_over`` (``valid``:
+    the paper; ``all``: the released code), SSIM window radius (0: 11x11 Gaussian; released: 2),
+    splatting ``z_max_m`` of the weight ``exp(-2 z / z_max)``."""
+
+    photometric: float = 0.85
+    depth: float = 0.1
+    surface: float = 0.05
+    alpha: float = 0.85
+    gamma: float = 1e-3
+    c_over: str = "valid"
+    ssim_radius: int = 0
+    z_max_m: float = 6.0
+
+    def __post_init__(self) -> None:
+        if self.c_over not in ("valid", "all"):
+            raise ValueError(f"loss.c_over must be 'valid' or 'all', got {self.c_over!r}")
+        if min(self.photometric, self.depth, self.surface) < 0 or not 0 <= self.alpha <= 1 or self.z_max_m <= 0:
+            raise ValueError("loss weights must be >= 0, alpha in [0, 1] and z_max_m > 0")
+
+    def module(self) -> DDDLoss:
+        w = DDDWeights(photometric=self.photometric, depth=self.depth, surface=self.surface, alpha=self.alpha)
+        return DDDLoss(weights=w, gamma=self.gamma, c_over=self.c_over, ssim_radius=self.ssim_radius or None)
+
+
+def build(model: ModelConfig) -> DDDNet:
+    return DDDNet(width=model.width, residual=model.residual)
+
+
+def multiview_loss(net: DDDNet, batch: dict, cfg: LossConfig, module: DDDLoss) -> tuple[torch.Tensor, dict]:
+    """Eq. 22 for a batch of ``V``-view samples (keys of :class:`methods.ddd.multiview.MultiViewSamples`)."""
+    depth, valid, color, cam, T_rig = batch["depth"], batch["valid"] > 0.5, batch["color"], batch["camera"], batch["T_rig"]
+    b, v, _, h, w = depth.shape
+    pred = net(depth.flatten(0, 1), valid.flatten(0, 1).to(depth.dtype)).view(b, v, 1, h, w)
+    rendered, targets, photo_masks, normals = [], [], [], []
+    for t in range(v):
+        T_t_inv = torch.linalg.inv(T_rig[:, t])
+        sources = [dict(depth=pred[:, s], valid=valid[:, s], color=color[:, s], K=cam[:, s], T_ts=T_t_inv @ T_rig[:, s])
+                   for s in range(v) if s != t]
+        img, _, acc = render_view(sources, cam[:, t], (h, w), z_max=cfg.z_max_m)
+        rendered.append(img)
+        targets.append(color[:, t])
+        photo_masks.append(valid[:, t] & (acc > 1e-6))
+        normals.append(normals_from_depth(pred[:, t], cam[:, t], valid[:, t]))
+    return module(rendered=rendered, targets=targets, photo_masks=photo_masks, preds=[pred[:, s] for s in range(v)],
+                  observed=[depth[:, s] for s in range(v)], valid=[valid[:, s] for s in range(v)], normals=normals)
+
+
+def batch_loss(cfg: LossConfig):
+    """``loss(net, batch) -> scalar`` for :class:`methods.nn.trainer.FitJob`; terms of the last call in ``loss.terms``."""
+    module = cfg.module()
+
+    def loss(net, batch: dict) -> torch.Tensor:
+        total, terms = multiview_loss(net, batch, cfg, module)
+        loss.terms = terms
+        return total
+
+    loss.terms = {}
+    return loss
+
+
+@torch.no_grad()
+def denoise_metres(net: DDDNet, depth: torch.Tensor) -> torch.Tensor:
+    """Inference: depth ``(B, 1, H, W)`` metres with NaN holes -> denoised depth, NaN where the input had none."""
+    valid = torch.isfinite(depth) & (depth > 0)
+    out = net(torch.where(valid, depth, torch.zeros_like(depth)), valid.to(depth.dtype))
+    return torch.where(valid, out, torch.full_like(out, float("nan")))

@@ -1,0 +1,105 @@
+"""DDRNet on metric depth: the training loss of one batch and inference, around :mod:`methods.ddrnet.nets`.
+
+A batch (``methods.nn.data.AlignedSamples``, single frames) holds ``lq_depth`` (the input ``D_in``),
+``reference`` (the warped HQ depth: ``D_ref``), ``color`` (the LQ colour image, grey = Rec. 601
+luminance in ``[0, 1]``: the ``I`` of the shading loss), ``roi`` (the foreground mask ``W`` of the
+paper) and ``camera`` (``fx, fy, cx, cy`` of the crop). Losses are taken over
+``W & valid reference & measured input``; see :mod:`methods.ddrnet.losses` for the terms.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from methods.ddrnet.losses import ALBEDOS, DDRNetLoss, DDRNetWeights
+from methods.ddrnet.nets import DDRNet, denormalise_depth, normalise_depth
+
+LUMA = (0.299, 0.587, 0.114)
+
+
+@dataclass
+class ModelConfig:
+    """``width``: denoising net's first width (32 -> 64 -> 128); ``refine_width``: hypercolumn width
+    (16 -> 32 -> 64); ``residual_refine``: refined depth = ``D_dn + tanh(.)`` (False: ``tanh(.)``, released)."""
+
+    width: int = 32
+    refine_width: int = 16
+    residual_refine: bool = True
+
+    def __post_init__(self) -> None:
+        if self.width < 1 or self.refine_width < 4:
+            raise ValueError(f"model.width must be >= 1 and model.refine_width >= 4, got {self.width}, {self.refine_width}")
+
+
+@dataclass
+class LossConfig:
+    """The lambdas of eq. 13-20 (see :class:`methods.ddrnet.losses.DDRNetWeights`), the albedo
+    choice (``ratio`` or ``uniform``) and ``released_terms`` (drop eq. 12 and 19 as the released code)."""
+
+    rec: float = 1.0
+    dot: float = 30.0
+    sh: float = 0.1
+    grad: float = 1.0
+    fid: float = 1.0
+    smo: float = 0.01
+    lam: float = 1.0
+    albedo: str = "ratio"
+    released_terms: bool = False
+
+    def __post_init__(self) -> None:
+        if self.albedo not in ALBEDOS:
+            raise ValueError(f"loss.albedo must be one of {', '.join(ALBEDOS)}, got {self.albedo!r}")
+        for k in ("rec", "dot", "sh", "grad", "fid", "smo", "lam"):
+            if getattr(self, k) < 0:
+                raise ValueError(f"loss.{k} must be >= 0, got {getattr(self, k)}")
+
+    def module(self) -> DDRNetLoss:
+        w = DDRNetWeights(rec=self.rec, dot=self.dot, sh=self.sh, grad=self.grad, fid=self.fid, smo=self.smo, lam=self.lam)
+        return DDRNetLoss(weights=w, albedo=self.albedo, released_terms=self.released_terms)
+
+
+def build(model: ModelConfig, *, refine: bool) -> DDRNet:
+    return DDRNet(refine=refine, width=model.width, refine_width=model.refine_width, residual_refine=model.residual_refine)
+
+
+def grey_of(color: torch.Tensor) -> torch.Tensor:
+    """``(B, 3, H, W)`` RGB in ``[0, 1]`` -> ``(B, 1, H, W)`` luminance in ``[0, 1]``."""
+    w = torch.tensor(LUMA, dtype=color.dtype, device=color.device).view(1, 3, 1, 1)
+    return (color * w).sum(dim=1, keepdim=True)
+
+
+def run_metres(net: DDRNet, depth: torch.Tensor, grey: torch.Tensor | None, *, d_min: float,
+               d_max: float) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """Depth ``(B, 1, H, W)`` metres (NaN holes) and grey ``[0, 1]`` -> ``(D_dn, D_dt)`` metres (no holes)."""
+    x = normalise_depth(depth, d_min=d_min, d_max=d_max)
+    g = None if grey is None else grey * 2.0 - 1.0
+    dn, dt = net(x, g)
+    back = lambda t: None if t is None else denormalise_depth(t, d_min=d_min, d_max=d_max)  # noqa: E731
+    return back(dn), back(dt)
+
+
+def _frame(batch: dict, key: str) -> torch.Tensor:
+    t = batch[key]
+    return t[:, 0] if t.ndim == 5 else t  # (B, T=1, C, H, W) -> (B, C, H, W)
+
+
+def batch_loss(loss_cfg: LossConfig, *, d_min: float, d_max: float):
+    """``loss(net, batch) -> scalar`` for :class:`methods.nn.trainer.FitJob` (eq. 20); the terms of
+    the last call are kept in ``loss.terms``."""
+    module = loss_cfg.module()
+
+    def loss(net: DDRNet, batch: dict) -> torch.Tensor:
+        depth, ref = _frame(batch, "lq_depth"), _frame(batch, "reference")
+        grey = grey_of(_frame(batch, "color"))
+        mask = (_frame(batch, "roi") > 0.5) & torch.isfinite(ref) & torch.isfinite(depth)
+        inner = net.module if hasattr(net, "module") else net
+        dn, dt = run_metres(net, depth, grey if inner.refine is not None else None, d_min=d_min, d_max=d_max)
+        total, terms = module(d_dn=dn, d_dt=dt, ref=torch.nan_to_num(ref, nan=0.0), mask=mask,
+                              K=batch["camera"].to(depth.dtype), grey=grey)
+        loss.terms = terms
+        return total
+
+    loss.terms = {}
+    return loss
+

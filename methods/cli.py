@@ -49,6 +49,10 @@ def register(subparsers) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run_run)
 
+    from methods.train_cli import add_parsers
+
+    add_parsers(sub)
+
 
 # ----------------------------------------------------------------------------- parameters
 def parse_value(text: str):

@@ -16,3 +16,19 @@ class FrameRejectedError(MethodError):
     Wherever a method runs over a dataset (``methods run``, ``bench run``, the demo) the run stops
     on it with this one-line error and publishes nothing; see :mod:`methods.run`.
     """
+
+
+class TrainingError(MethodError):
+    """Root of the training errors: bad configs, manifests, checkpoints, runs."""
+
+
+class ConfigError(TrainingError):
+    """A training config file that cannot be used (unknown key, wrong type, not TOML)."""
+
+
+class CheckpointError(TrainingError):
+    """A weights/checkpoint file that is missing, corrupt, foreign or not tensors-only."""
+
+
+class TrainingManifestError(TrainingError):
+    """A training dataset manifest that is invalid or names a missing or changed dataset."""

@@ -1,0 +1,53 @@
+"""SSDD's training config (``methods/configs/ssdd/<name>.toml``): one section per level.
+
+::
+
+    folds = 2                     # k of the out-of-fold level-1 predictions (>= 2)
+    [level1.model]  width, levels, use_mask, use_color           (methods.ssdd.networks.NetConfig)
+    [level1.data]   crop, flip, sequence_length = 1, depth_min_m, depth_max_m, preload
+    [level1.optim]  epochs, batch_size, lr, weight_decay, samples_per_epoch, grad_clip, seed
+    [level2.model]  ... and recurrent = [-1] (ConvLSTM levels; -1 = bottleneck)
+    [level2.data]   ... sequence_length = N (frames per training sequence)
+    [level2.optim]  ...
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from methods.nn.config import DataConfig, OptimConfig
+from methods.ssdd.networks import NetConfig
+
+
+@dataclass
+class Level1Config:
+    model: NetConfig = field(default_factory=NetConfig)
+    data: DataConfig = field(default_factory=DataConfig)
+    optim: OptimConfig = field(default_factory=OptimConfig)
+
+    def __post_init__(self) -> None:
+        if self.model.recurrent:
+            raise ValueError("level1.model.recurrent must be empty (level 1 sees single frames)")
+        if self.data.sequence_length != 1:
+            raise ValueError("level1.data.sequence_length must be 1 (level 1 sees single frames)")
+
+
+@dataclass
+class Level2Config:
+    model: NetConfig = field(default_factory=lambda: NetConfig(recurrent=[-1]))
+    data: DataConfig = field(default_factory=lambda: DataConfig(sequence_length=4))
+    optim: OptimConfig = field(default_factory=OptimConfig)
+
+    def __post_init__(self) -> None:
+        if not self.model.recurrent:
+            raise ValueError("level2.model.recurrent must name at least one level (-1 = bottleneck)")
+
+
+@dataclass
+class SSDDConfig:
+    folds: int = 2
+    level1: Level1Config = field(default_factory=Level1Config)
+    level2: Level2Config = field(default_factory=Level2Config)
+
+    def __post_init__(self) -> None:
+        if self.folds < 2:
+            raise ValueError(f"folds must be at least 2, got {self.folds}")

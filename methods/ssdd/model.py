@@ -1,0 +1,56 @@
+"""SSDD's forward passes in metres, shared by training, out-of-fold prediction and inference.
+
+Pure functions on tensors: depth ``(N, 1, H, W)`` metres with NaN holes in, metres out (a value
+at every pixel: the networks fill holes; callers decide whether to keep them).
+"""
+from __future__ import annotations
+
+import torch
+
+from methods.nn.config import DataConfig
+from methods.nn.losses import masked_l1
+from methods.nn.normalize import denormalize_depth, normalize_depth
+from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
+
+
+def _norm(data: DataConfig) -> dict:
+    return {"d_min": data.depth_min_m, "d_max": data.depth_max_m}
+
+
+def level1_depth(net: SSDDUNet, depth: torch.Tensor, rgb: torch.Tensor | None, data: DataConfig) -> torch.Tensor:
+    """Level 1 on ``depth`` ``(..., 1, H, W)`` metres (and ``rgb`` ``(..., 3, H, W)`` in [0, 1]) -> metres."""
+    x, valid = normalize_depth(depth, **_norm(data))
+    return denormalize_depth(net(x, valid, rgb), **_norm(data))
+
+
+def level2_step(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
+                data: DataConfig, state: dict | None) -> tuple[torch.Tensor, dict]:
+    """One frame of level 2: level-1 prediction and LQ depth ``(B, 1, H, W)`` metres -> metres, new state."""
+    x1, _ = normalize_depth(level1, **_norm(data))
+    x, valid = normalize_depth(depth, **_norm(data))
+    y, state = net.step(x1, x, valid, rgb, state)
+    return denormalize_depth(y, **_norm(data)), state
+
+
+def level2_depth(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
+                 data: DataConfig) -> torch.Tensor:
+    """Level 2 over sequences ``(B, T, 1, H, W)`` (state from zeros at ``t = 0``) -> metres."""
+    x1, _ = normalize_depth(level1, **_norm(data))
+    x, valid = normalize_depth(depth, **_norm(data))
+    return denormalize_depth(net(x1, x, valid, rgb), **_norm(data))
+
+
+def level1_loss(data: DataConfig):
+    """Eq. 32 loss of level 1 on a training batch (keys of :mod:`methods.nn.data`)."""
+    def loss(net, batch):
+        pred = level1_depth(net, batch["lq_depth"], batch["color"], data)
+        return masked_l1(pred, batch["reference"], batch["roi"], batch["valid"])
+    return loss
+
+
+def level2_loss(data: DataConfig):
+    """Eq. 32 loss of level 2 over every frame of a batch of sequences with a ``level1`` layer."""
+    def loss(net, batch):
+        pred = level2_depth(net, batch["level1"], batch["lq_depth"], batch["color"], data)
+        return masked_l1(pred, batch["reference"], batch["roi"], batch["valid"])
+    return loss

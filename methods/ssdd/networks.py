@@ -1,0 +1,136 @@
+"""SSDD's two networks: a UNet (level 1) and a UNet with ConvLSTM state (level 2).
+
+Both predict a correction of their first input channel (residual learning) in normalised depth
+units (:mod:`methods.nn.normalize`):
+
+* level 1, :class:`SSDDUNet`: input ``[x_lq, valid_lq?, rgb?]`` -> ``x_lq + UNet(...)``;
+* level 2, :class:`SSDDLSTMUNet`: input ``[x_l1, x_lq, valid_lq?, rgb?]`` -> ``x_l1 + UNet(...)``,
+  where ``x_l1`` is the level-1 prediction; ConvLSTM cells at the chosen levels (by default the
+  bottleneck) carry state from frame to frame of a sequence.
+
+Shapes: single frames ``(B, C, H, W) -> (B, 1, H, W)``; sequences ``(B, T, C, H, W) -> (B, T, 1, H, W)``.
+Any ``H, W`` works (the decoder resizes to each skip connection); a width of 16 at four levels
+keeps a 640x480 frame under 100 ms on two CPU cores (``perf/ssdd_inference.py``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+from torch import nn
+
+from methods.nn.convlstm import ConvLSTMCell
+from methods.nn.layers import ConvBlock, Down, Up, level_widths
+
+
+@dataclass
+class NetConfig:
+    """A UNet's shape and inputs.
+
+    ``width``: channels of the first level (doubling per level); ``levels``: resolutions (the
+    bottleneck is ``levels - 1``); ``use_mask``: feed the LQ validity mask; ``use_color``: feed
+    the LQ colour; ``recurrent``: levels with a ConvLSTM cell (level 2 only; -1 = bottleneck).
+    """
+
+    width: int = 16
+    levels: int = 4
+    use_mask: bool = True
+    use_color: bool = False
+    recurrent: list[int] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.width < 2 or self.levels < 1 or self.levels > 7:
+            raise ValueError(f"model.width must be >= 2 and model.levels 1..7, got {self.width}, {self.levels}")
+        bad = [r for r in self.recurrent if not -self.levels <= r < self.levels]
+        if bad:
+            raise ValueError(f"model.recurrent: level {bad[0]} does not exist in a {self.levels}-level UNet")
+
+    def recurrent_levels(self) -> list[int]:
+        return sorted({r % self.levels for r in self.recurrent})
+
+    def extra_channels(self) -> int:
+        return int(self.use_mask) + 3 * int(self.use_color)
+
+
+class UNet(nn.Module):
+    """UNet with optional ConvLSTM cells: ``step(x, state) -> (residual (B, 1, H, W), state)``.
+
+    ``state`` maps a recurrent level to its ConvLSTM ``(h, c)``; ``None`` starts a sequence.
+    A cell's output is added to the level's features (the feed-forward path stays intact).
+    """
+
+    def __init__(self, c_in: int, *, width: int, levels: int, recurrent: list[int] = ()) -> None:
+        super().__init__()
+        widths = level_widths(width, levels)
+        self.recurrent = list(recurrent)
+        self.inc = ConvBlock(c_in, widths[0])
+        self.downs = nn.ModuleList(Down(widths[i - 1], widths[i]) for i in range(1, levels))
+        self.cells = nn.ModuleDict({str(lv): ConvLSTMCell(widths[lv], widths[lv]) for lv in self.recurrent})
+        self.ups = nn.ModuleList(Up(widths[i], widths[i - 1], widths[i - 1]) for i in range(levels - 1, 0, -1))
+        self.head = nn.Conv2d(widths[0], 1, 1)
+        with torch.no_grad():   # start near the identity (small residual), but let gradients flow everywhere
+            self.head.weight.mul_(0.01)
+            self.head.bias.zero_()
+
+    def step(self, x: torch.Tensor, state: dict | None = None) -> tuple[torch.Tensor, dict]:
+        state = state or {}
+        new: dict = {}
+        feats = []
+        h = self.inc(x)
+        for lv in range(len(self.downs) + 1):
+            if lv > 0:
+                h = self.downs[lv - 1](h)
+            if str(lv) in self.cells:
+                out, new[lv] = self.cells[str(lv)](h, state.get(lv))
+                h = h + out
+            feats.append(h)
+        for up, skip in zip(self.ups, reversed(feats[:-1])):
+            h = up(h, skip)
+        return self.head(h), new
+
+
+def _inputs(first: torch.Tensor, others: list[torch.Tensor | None]) -> torch.Tensor:
+    return torch.cat([first] + [o for o in others if o is not None], dim=-3)
+
+
+class SSDDUNet(nn.Module):
+    """Level 1: ``forward(x_lq, valid=None, rgb=None)`` on ``(..., 1|3, H, W)`` -> normalised depth ``(..., 1, H, W)``."""
+
+    def __init__(self, cfg: NetConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.unet = UNet(1 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels)
+
+    def forward(self, x_lq: torch.Tensor, valid: torch.Tensor | None = None, rgb: torch.Tensor | None = None) -> torch.Tensor:
+        x = _inputs(x_lq, [valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])
+        lead = x.shape[:-3]
+        flat = x.reshape(-1, *x.shape[-3:])
+        res, _ = self.unet.step(flat)
+        return x_lq + res.reshape(*lead, *res.shape[-3:])
+
+
+class SSDDLSTMUNet(nn.Module):
+    """Level 2 over sequences: ``forward(x_l1, x_lq, valid, rgb)`` with inputs ``(B, T, C, H, W)``.
+
+    :meth:`step` processes one frame ``(B, C, H, W)`` with a carried state (streaming inference).
+    """
+
+    def __init__(self, cfg: NetConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.unet = UNet(2 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels,
+                         recurrent=cfg.recurrent_levels())
+
+    def step(self, x_l1, x_lq, valid=None, rgb=None, state: dict | None = None) -> tuple[torch.Tensor, dict]:
+        x = _inputs(x_l1, [x_lq, valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])
+        res, state = self.unet.step(x, state)
+        return x_l1 + res, state
+
+    def forward(self, x_l1, x_lq, valid=None, rgb=None) -> torch.Tensor:
+        state = None
+        outs = []
+        for t in range(x_l1.shape[1]):
+            y, state = self.step(x_l1[:, t], x_lq[:, t], None if valid is None else valid[:, t],
+                                 None if rgb is None else rgb[:, t], state)
+            outs.append(y)
+        return torch.stack(outs, dim=1)

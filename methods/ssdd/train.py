@@ -1,0 +1,151 @@
+"""Training SSDD: level 1 (UNet), out-of-fold level-1 predictions, level 2 (LSTM-UNet).
+
+``ssdd_unet`` trains level 1 on every training sequence. ``ssdd_lstm`` trains both levels:
+
+1. the training sequences are split into ``k`` folds (:func:`assign_folds`, seeded);
+2. for each fold f a level-1 model is trained on the other folds (``RUN/level1/fold<f>/``) and
+   predicts every frame of fold f: those are the out-of-fold (OOF) predictions, made by a model
+   that never saw the frame's sequence;
+3. a final level-1 model is trained on all training sequences (``RUN/level1/final/``): it is the
+   level 1 of inference, and predicts the validation sequences for level 2's validation;
+4. level 2 is trained on sequences of (OOF level-1 prediction, LQ depth) against the reference
+   (``RUN/level2/``).
+
+``RUN/oof.json`` records, for every training sequence, its fold, the model that predicted it and
+the checksums of the sequences that model was trained on; each fold's checkpoint records the same
+list independently (``trained_on``). Weights: ``RUN/ssdd_unet.safetensors`` (level 1) and
+``RUN/ssdd_lstm.safetensors`` (both levels).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from align.dataset import AlignedDataset
+from depthbench.fsutil import atomic_write_json
+from methods.errors import TrainingError
+from methods.nn.data import AlignedSamples
+from methods.nn.train import RunContext, Trainer, register_trainer
+from methods.nn.trainer import FitJob, seeded
+from methods.ssdd.config import Level1Config, SSDDConfig
+from methods.ssdd.model import level1_depth, level1_loss, level2_loss
+from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
+
+OOF_JSON = "oof.json"
+
+
+def assign_folds(datasets: list[AlignedDataset], k: int, *, seed: int) -> list[int]:
+    """Fold of each dataset (sequence): a seeded permutation dealt round-robin into ``k`` folds."""
+    if k > len(datasets):
+        raise TrainingError(f"folds = {k} needs at least {k} training sequences, the manifest has {len(datasets)}")
+    order = np.random.default_rng([seed, 104729]).permutation(len(datasets))
+    folds = [0] * len(datasets)
+    for pos, i in enumerate(order):
+        folds[int(i)] = pos % k
+    return folds
+
+
+def _samples(datasets, data, *, seed: int, train: bool, extra=None) -> AlignedSamples | None:
+    if not datasets:
+        return None
+    return AlignedSamples(datasets, sequence_length=data.sequence_length, crop=data.crop if train else 0,
+                          flip=data.flip and train, seed=seed, preload=data.preload, extra=extra,
+                          stride=1 if train else data.sequence_length)
+
+
+def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset], validation: list[AlignedDataset],
+                folder: str, name: str) -> SSDDUNet:
+    job = FitJob(name=name, model=seeded(lambda: SSDDUNet(cfg.model), cfg.optim.seed), loss=level1_loss(cfg.data),
+                 train=_samples(train, cfg.data, seed=cfg.optim.seed, train=True),
+                 validation=_samples(validation, cfg.data, seed=cfg.optim.seed, train=False),
+                 optim=cfg.optim, folder=ctx.out / folder, num_workers=cfg.data.num_workers,
+                 meta={"trained_on": [ds.checksum for ds in train]})
+    model = ctx.fit(job).model
+    model.eval()
+    return model
+
+
+@torch.no_grad()
+def predict_level1(model: SSDDUNet, ds: AlignedDataset, cfg: Level1Config, *, batch: int = 8) -> np.ndarray:
+    """Level-1 prediction of every frame of ``ds`` (whole frames): ``(F, H, W)`` float32 metres, no holes."""
+    device = next(model.parameters()).device
+    model.eval()
+    out = np.empty((len(ds),) + ds.lq_intrinsics.shape, np.float32)
+    for s in range(0, len(ds), batch):
+        idx = range(s, min(s + batch, len(ds)))
+        depth = torch.from_numpy(np.stack([ds.lq_depth(i) for i in idx])[:, None]).to(device)
+        rgb = None
+        if cfg.model.use_color:
+            rgb = torch.from_numpy(np.stack([_rgb(ds, i) for i in idx])).to(device)
+        out[s:s + len(idx)] = level1_depth(model, depth, rgb, cfg.data)[:, 0].cpu().numpy()
+    return out
+
+
+def _rgb(ds: AlignedDataset, i: int) -> np.ndarray:
+    c = ds.lq_color(i)
+    if c is None:
+        return np.zeros((3,) + ds.lq_intrinsics.shape, np.float32)
+    return c.transpose(2, 0, 1).astype(np.float32) / 255.0
+
+
+def _prefixed(model: torch.nn.Module, prefix: str) -> dict:
+    return {f"{prefix}{k}": v for k, v in model.state_dict().items()}
+
+
+def train_unet(ctx: RunContext) -> dict[str, Path]:
+    """``ssdd_unet``: level 1 on every training sequence."""
+    cfg: SSDDConfig = ctx.config
+    final = _fit_level1(ctx, cfg.level1, ctx.manifest.split("train"), ctx.manifest.split("validation"),
+                        "level1/final", "level 1")
+    return {"ssdd_unet": ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))}
+
+
+def out_of_fold(ctx: RunContext, cfg: SSDDConfig) -> tuple[dict[str, np.ndarray], dict]:
+    """Steps 1-2: the OOF level-1 prediction of every training sequence, and the record of who made it."""
+    train = ctx.manifest.split("train")
+    folds = assign_folds(train, cfg.folds, seed=cfg.level1.optim.seed)
+    preds: dict[str, np.ndarray] = {}
+    record = {"folds": cfg.folds, "datasets": []}
+    for f in range(cfg.folds):
+        fit_on = [ds for ds, g in zip(train, folds) if g != f]
+        held = [ds for ds, g in zip(train, folds) if g == f]
+        model = _fit_level1(ctx, cfg.level1, fit_on, ctx.manifest.split("validation"), f"level1/fold{f}",
+                            f"level 1 fold {f + 1}/{cfg.folds}")
+        for ds in held:
+            preds[ds.checksum] = predict_level1(model, ds, cfg.level1)
+            record["datasets"].append({"name": ds.name, "checksum": ds.checksum, "fold": f,
+                                       "model": f"level1/fold{f}",
+                                       "model_trained_on": [o.checksum for o in fit_on]})
+    return preds, record
+
+
+def train_lstm(ctx: RunContext) -> dict[str, Path]:
+    """``ssdd_lstm``: both levels, level 2 on out-of-fold level-1 predictions."""
+    cfg: SSDDConfig = ctx.config
+    train, validation = ctx.manifest.split("train"), ctx.manifest.split("validation")
+    oof, record = out_of_fold(ctx, cfg)
+    if ctx.dist.main:
+        atomic_write_json(ctx.out / OOF_JSON, record)
+    final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1 final")
+    unet_weights = ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))
+    val_preds = {ds.checksum: predict_level1(final, ds, cfg.level1) for ds in validation}
+    l2 = cfg.level2
+    job = FitJob(name="level 2", model=seeded(lambda: SSDDLSTMUNet(l2.model), l2.optim.seed),
+                 loss=level2_loss(l2.data),
+                 train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof}),
+                 validation=_samples(validation, l2.data, seed=l2.optim.seed, train=False,
+                                     extra={"level1": val_preds}),
+                 optim=l2.optim, folder=ctx.out / "level2", num_workers=l2.data.num_workers,
+                 meta={"trained_on": [ds.checksum for ds in train], "oof": record})
+    level2 = ctx.fit(job).model
+    tensors = {**_prefixed(final, "level1/"), **_prefixed(level2, "level2/")}
+    lstm_weights = ctx.save_weights("ssdd_lstm", tensors, oof=record)
+    return {"ssdd_unet": unet_weights, "ssdd_lstm": lstm_weights}
+
+
+register_trainer(Trainer("ssdd_unet", "ssdd", SSDDConfig, train_unet,
+                         "SSDD level 1: UNet on LQ depth, eq. 32 loss against the warped HQ depth"))
+register_trainer(Trainer("ssdd_lstm", "ssdd", SSDDConfig, train_lstm,
+                         "SSDD levels 1 and 2: k-fold out-of-fold level-1 predictions, then the LSTM-UNet"))

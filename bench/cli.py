@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 
+from bench.errors import BenchError
+
 _RUN_EPILOG = """\
 The results folder (--out):
   new or empty           built aside and published when the run is complete (a failed run leaves nothing)
@@ -61,6 +63,9 @@ def register(subparsers) -> None:
                    help="'all' (every registered method) or a comma-separated list, e.g. raw,bf,jbf,rgf "
                         "(bf/jbf/rgf name bilateral/joint_bilateral/rolling_guidance); default: all")
     p.add_argument("--out", required=True, metavar="RESULTS", help="results folder (see below)")
+    p.add_argument("--param", action="append", default=[], metavar="METHOD.K=V",
+                   help="a parameter of one method, e.g. bf.sigma_color=0.02 or ssdd_unet.weights=RUN/model.safetensors "
+                        "(repeatable; a learned method joins 'all' once its weights are given)")
     ex = p.add_mutually_exclusive_group()
     ex.add_argument("--jobs", type=_positive_int, metavar="N",
                     help="local worker processes (default: the number of CPUs; 1 = in this process)")
@@ -113,7 +118,8 @@ def _run(args) -> int:
 
     config = MetricConfig(radius_m=args.radius_mm / 1000.0)
     res = run_benchmark(args.data, args.methods, args.out, config=config, jobs=args.jobs, workers=args.workers,
-                        scheduler=args.scheduler, force=args.force, progress=args.progress, report=not args.no_report)
+                        scheduler=args.scheduler, force=args.force, progress=args.progress, report=not args.no_report,
+                        params=_method_params(args.param))
     print(f"{res.table_path}: {len(res.table)} rows ({res.computed} results computed, {res.reused} reused from the "
           "cache)")
     for s in res.superseded:
@@ -121,6 +127,19 @@ def _run(args) -> int:
     if res.report is not None:
         print(f"leaderboard: {res.report.markdown}  (HTML: {res.report.html})")
     return 0
+
+
+def _method_params(items: list[str]) -> dict[str, dict]:
+    """``["bf.sigma_color=0.02", ...]`` -> ``{"bf": {"sigma_color": 0.02}}`` (values as ``methods run --param``)."""
+    from methods.cli import parse_params
+
+    by_method: dict[str, list[str]] = {}
+    for item in items:
+        method, dot, rest = item.partition(".")
+        if not dot or not method.strip() or "=" not in rest:
+            raise BenchError(f"--param {item!r}: expected METHOD.NAME=VALUE, e.g. bf.sigma_color=0.02")
+        by_method.setdefault(method.strip(), []).append(rest)
+    return {method: parse_params(values) for method, values in by_method.items()}
 
 
 def _report(args) -> int:

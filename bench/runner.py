@@ -59,7 +59,7 @@ from depthbench.errors import OutputExistsError
 from depthbench.fsutil import publish_directory, staging_dir_for
 from methods.base import Denoiser
 from methods.errors import UnknownMethodError
-from methods.registry import available, get
+from methods.registry import available, get, resolve_name
 from methods.run import plan_chunks
 
 log = logging.getLogger(__name__)
@@ -91,24 +91,36 @@ class BenchResult:
 
 
 # ----------------------------------------------------------------------------------- inputs
-def resolve_methods(methods: str | Sequence[str | Denoiser]) -> list[Denoiser]:
+def resolve_methods(methods: str | Sequence[str | Denoiser],
+                    params: dict[str, dict] | None = None) -> list[Denoiser]:
     """``"all"``, a comma-separated string, or a list of names / Denoiser instances -> instances.
+
+    ``params`` maps a method name (or alias) to parameters for the methods named by string, e.g.
+    ``{"ssdd_unet": {"weights": "run/model.safetensors"}}``. ``"all"`` is every registered method
+    that runs without parameters, plus the learned ones whose weights ``params`` names.
 
     Raises :class:`methods.errors.UnknownMethodError` (one line, listing the known names).
     """
+    try:
+        params = {resolve_name(n): dict(p) for n, p in (params or {}).items()}
+    except UnknownMethodError as exc:
+        raise UnknownMethodError(f"--param: {exc}") from None
     if isinstance(methods, str):
         names = [m.strip() for m in methods.split(",") if m.strip()]
-        if names == ["all"]:   # every method that runs without arguments (a learned one needs its weights named)
-            return [cls() for cls in available().values() if not cls.needs_weights()]
+        if names == ["all"]:
+            names = [n for n, cls in available().items() if not cls.needs_weights() or n in params]
         methods = names
     out: list[Denoiser] = []
     for m in methods:
         if isinstance(m, str):
             try:
-                m = get(m)  # names or the seed's aliases (bf, jbf, rgf)
+                m = resolve_name(m)   # names or the seed's aliases (bf, jbf, rgf)
             except UnknownMethodError as exc:
                 raise UnknownMethodError(f"--methods: {exc}") from None
+            m = get(m, **params.pop(m, {}))
         out.append(m)
+    if params:
+        raise BenchError(f"--param: method {next(iter(params))!r} is not among the methods to run")
     if not out:
         raise BenchError("--methods: no method given (use 'all' or names such as raw,bf)")
     keys = [m.key for m in out]
@@ -229,14 +241,14 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
                   out: str | os.PathLike, *, config: MetricConfig = MetricConfig(), executor: str = "process",
                   jobs: int | None = None, workers: int | None = None, scheduler: str | None = None,
                   force: bool = False, progress: bool | None = None, report: bool = True,
-                  threads_per_task: int | None = None) -> BenchResult:
+                  threads_per_task: int | None = None, params: dict[str, dict] | None = None) -> BenchResult:
     """Score ``methods`` on every frame of ``datasets``; write (or continue) the results folder ``out``.
 
     Args:
         datasets: aligned dataset folders (a folder of aligned datasets stands for all of them).
         methods: ``"all"``, ``"raw,bf"``, or a list of names / :class:`methods.base.Denoiser` instances
-            (``"all"``: every registered method that runs without arguments; a learned method needs
-            its weights, so pass it as an instance).
+            (``"all"``: every registered method that runs without parameters, and the learned methods
+            whose weights ``params`` names).
         out: the results folder (see the module docstring for how an existing one is continued).
         config: metric parameters (part of the folder's identity).
         executor: ``"process"`` (local processes) or ``"dask"``; ``workers``/``scheduler`` imply Dask.
@@ -249,6 +261,8 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
         threads_per_task: CPU threads a task may use (numba kernels, plane fit); default: the CPU count
             divided among the local workers (library defaults on a remote cluster). Results do not
             depend on it.
+        params: parameters of methods named by string, by method name, e.g.
+            ``{"ssdd_unet": {"weights": "run/model.safetensors"}}`` (see :func:`resolve_methods`).
 
     Returns:
         A :class:`BenchResult`.
@@ -259,8 +273,11 @@ def run_benchmark(datasets: Sequence[str | os.PathLike | AlignedDataset], method
     """
     out = Path(out)
     spec = ExecutorSpec(executor=executor, jobs=jobs, workers=workers, scheduler=scheduler).check()
-    method_list = resolve_methods(methods)
+    method_list = resolve_methods(methods, params)
     ds_list = resolve_datasets(datasets)
+    for m in method_list:
+        for ds in ds_list:
+            m.check_dataset(ds)     # e.g. a learned method refusing its own training data, before any work
     if any(ds.simulated for ds in ds_list):
         method_list = method_list + [HQSensor()]
     work, prev_meta, staged = _prepare_out(out, config, force)

@@ -46,7 +46,8 @@ class DemoResult:
 @dataclass(frozen=True)
 class DemoConfig:
     """The demo's knobs: scene ``seconds``, ``seed``, the sensors' ``time_shift_ms`` (None: drawn from the
-    seed), image ``scale`` (1 = the sensors' own size), the benchmark's ``methods`` and local ``jobs``."""
+    seed), image ``scale`` (1 = the sensors' own size), the benchmark's ``methods`` and local ``jobs``;
+    ``probes`` and ``reports`` shrink a test run."""
 
     seconds: float = 3.0
     seed: int = 0
@@ -55,6 +56,8 @@ class DemoConfig:
     methods: str = "all"
     jobs: int | None = None
     progress: bool = True
+    probes: int | None = None      # HQ frames that fit the time shift and extrinsics (None: align's default)
+    reports: bool = True           # the alignment report and the leaderboard's Markdown/HTML/figures
 
 
 def _command(*parts: Any) -> str:
@@ -73,6 +76,9 @@ def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
     shift = "" if config.time_shift_ms is None else f"--time-shift-ms {config.time_shift_ms:g}"
     scale = "" if config.scale == 1.0 else f"--scale {config.scale:g}"
     jobs = "" if config.jobs is None else f"--jobs {config.jobs}"
+    probes = "" if config.probes is None else f"--probes {config.probes}"
+    no_report = "" if config.reports else "--no-report"
+    align_opts = {"report": config.reports, **({} if config.probes is None else {"probes": config.probes})}
     return [
         DemoStep("simulate an LQ+HQ rig",
                  _command("capture simulate --rig lq-hq --scene people --seconds", f"{config.seconds:g}", "--seed",
@@ -80,12 +86,13 @@ def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
                  lambda: simulate(session, rig="lq-hq", scene="people", seconds=config.seconds, seed=config.seed,
                                   force=force, time_shift_us=shift_us, scale=config.scale, progress=config.progress),
                  session),
-        DemoStep("align HQ onto LQ", _command("align", session, "--out", aligned, f),
-                 lambda: align_session(session, aligned, force=force, progress=config.progress), aligned),
+        DemoStep("align HQ onto LQ", _command("align", session, "--out", aligned, probes, no_report, f),
+                 lambda: align_session(session, aligned, force=force, progress=config.progress, **align_opts), aligned),
         DemoStep("benchmark every method",
-                 _command("bench run --data", aligned, "--methods", config.methods, "--out", results, jobs, f),
+                 _command("bench run --data", aligned, "--methods", config.methods, "--out", results, jobs,
+                          no_report, f),
                  lambda: run_benchmark([aligned], config.methods, results, force=force, jobs=config.jobs,
-                                       progress=None if config.progress else False),
+                                       progress=None if config.progress else False, report=config.reports),
                  results),
     ]
 

@@ -39,6 +39,7 @@ from typing import Any, ClassVar, Iterable, Iterator, Sequence
 import numpy as np
 
 from capture.camera import Intrinsics
+from depthbench.fsutil import sha256_file
 from methods.errors import MethodError
 
 #: Weight-file suffixes :meth:`Denoiser.load_weights` reads (tensors only, never pickles).
@@ -82,15 +83,6 @@ class MethodNeeds:
         if self.device != "cpu":
             parts.append(f"device {self.device}")
         return ", ".join(parts)
-
-
-def file_sha256(path: str | Path) -> str:
-    """sha256 of a file's content, hex."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def resolve_device(preference: str) -> str:
@@ -270,6 +262,13 @@ class Denoiser:
         """The weights file (absolute), or None for a method without weights."""
         return None if self.weights_param is None else Path(self.params[self.weights_param])
 
+    def check_dataset(self, dataset: Any) -> None:
+        """Refuse (raise :class:`MethodError`) a dataset this method must not be scored on, before any work.
+
+        Called by the runners with each aligned dataset (an ``align.dataset.AlignedDataset``); a
+        learned method refuses the datasets of its own training or validation split. Default: accept.
+        """
+
     def provenance(self) -> dict[str, Any]:
         """Extra facts a leaderboard should name (training manifest, config, ...). Default: none."""
         return {}
@@ -400,7 +399,7 @@ def _check_weights(method: str, param: str, value: Any) -> tuple[str, str]:
     if not path.is_file():
         raise MethodError(f"{path}: no such weights file")
     try:
-        return str(path), file_sha256(path)
+        return str(path), sha256_file(path)
     except OSError as exc:
         raise MethodError(f"{path}: cannot read the weights ({exc.strerror or exc})") from None
 

@@ -174,9 +174,11 @@ class DenoiseResult:
 
 
 def check_inputs(method: Denoiser, dataset) -> None:
-    """Refuse, before any work, a dataset without frames or without colour for a colour method."""
+    """Refuse, before any work, a dataset without frames, without colour for a colour method, or one
+    the method itself refuses (:meth:`methods.base.Denoiser.check_dataset`)."""
     if len(dataset) == 0:
         raise MethodError(f"{dataset.root}: the aligned dataset has no frames")
+    method.check_dataset(dataset)
     if method.uses_color:
         lacking = [i for i, row in enumerate(dataset.rows) if not row.get("lq_color_file")]
         if lacking:

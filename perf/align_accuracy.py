@@ -1,6 +1,6 @@
 """Alignment accuracy against truth/ on simulated sessions: the "must show" table of issue 4.
 
-Run:  .venv/bin/python bench/perf/align_accuracy.py [--scale 1.0] [--seconds 2] [--out DIR]
+Run:  .venv/bin/python perf/align_accuracy.py [--scale 1.0] [--seconds 2] [--out DIR]
 
 Simulates (into ``--out``, default a temporary folder) lq-hq sessions with moving people or
 balloons at several seeds and true shifts across +-60 ms (including +-55 ms), one static session,

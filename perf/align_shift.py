@@ -1,6 +1,6 @@
 """Time-shift search throughput and accuracy on a 30 s lq-hq session (two cores).
 
-Run:  .venv/bin/python bench/perf/align_shift.py [--session SIM] [--workers 2] [--probes 24]
+Run:  .venv/bin/python perf/align_shift.py [--session SIM] [--workers 2] [--probes 24]
 
 Without ``--session`` it first simulates a 30 s lq-hq session (default resolutions; minutes, ~2 GB) into
 ``--cache`` (a temporary folder by default) and reuses it on later runs. It then runs the fit that ``depthbench align`` runs

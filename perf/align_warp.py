@@ -1,6 +1,6 @@
 """Warp throughput: HQ depth 512x424 onto the LQ image 640x480 with the z-buffer, one core.
 
-Run:  .venv/bin/python bench/perf/align_warp.py [--session SIM] [--frames 200]
+Run:  .venv/bin/python perf/align_warp.py [--session SIM] [--frames 200]
 
 Without ``--session`` it simulates a short lq-hq session (default resolutions) into a temporary
 folder and uses its true ``T_lq_hq``. It prints, in one run:

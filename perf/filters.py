@@ -1,6 +1,6 @@
 """Timings of the hole-aware classical filters against OpenCV, on one 640x480 depth frame.
 
-    .venv/bin/python bench/perf/filters.py [--sigma-spatial S] [--radius R] [--repeats N] [--check]
+    .venv/bin/python perf/filters.py [--sigma-spatial S] [--radius R] [--repeats N] [--check]
 
 Every comparison uses the same window: OpenCV's ``d = 2 * radius + 1`` is our disk of ``radius``
 (OpenCV's bilateral filters use that disk too). Targets (issue 5):
@@ -24,15 +24,20 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from methods import get  # noqa: E402
-from methods._kernels import default_radius  # noqa: E402
+from methods.base import check_radius  # noqa: E402
 from methods.bilateral import bilateral_filter  # noqa: E402
 from methods.gaussian import gaussian_filter  # noqa: E402
 from methods.joint_bilateral import joint_bilateral_filter  # noqa: E402
 from methods.rolling_guidance import rolling_guidance_filter  # noqa: E402
 from methods.tools.synthetic import synthetic_scene  # noqa: E402
+
+
+def _radius(sigma_spatial: float) -> int:
+    """The filters' documented default window, ``max(1, ceil(2 * sigma_spatial))``."""
+    return check_radius(None, sigma_spatial, method="perf")
 
 
 def timed(pairs: dict, repeats: int) -> dict:
@@ -60,7 +65,7 @@ def main(argv=None) -> int:
     ap.add_argument("--check", action="store_true", help="exit 1 when a 1.5x target is missed")
     args = ap.parse_args(argv)
     ss, sr, it = args.sigma_spatial, args.sigma_color, args.iterations
-    r = args.radius or default_radius(ss)
+    r = args.radius or _radius(ss)
     d = 2 * r + 1
 
     truth, depth = synthetic_scene((480, 640), seed=0)

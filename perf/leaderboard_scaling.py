@@ -1,6 +1,6 @@
 """Timing: the leaderboard of the demo data on a Dask LocalCluster of 2 workers against 1.
 
-    .venv/bin/python bench/perf/leaderboard_scaling.py [--data ALIGNED] [--seconds 3] [--methods all]
+    .venv/bin/python perf/leaderboard_scaling.py [--data ALIGNED] [--seconds 3] [--methods all]
 
 Without ``--data`` the demo's data is made first, through the same commands the demo runs
 (``depthbench capture simulate --rig lq-hq --scene people --seconds 3 --seed 0`` and
@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.runner import run_benchmark  # noqa: E402
 

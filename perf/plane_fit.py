@@ -1,6 +1,6 @@
 """Timing: DDD's plane-fit RMSE of one 640x480 frame, fast path against per-point brute force, same run.
 
-    .venv/bin/python bench/perf/plane_fit.py [--threads 2] [--repeats 15] [--subset 2000]
+    .venv/bin/python perf/plane_fit.py [--threads 2] [--repeats 15] [--subset 2000]
 
 Frames:
   * ``synthetic``: a full 640x480 frame (every pixel valid) of a room-like scene at 1-3.2 m, HQ
@@ -28,13 +28,13 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench import metrics as M  # noqa: E402
 from capture.camera import Intrinsics  # noqa: E402
 
 K640 = Intrinsics(640, 480, 536.628, 536.606, 310.591, 234.759)
-REAL = Path(os.environ.get("DEPTHBENCH_REAL_DATA", Path(__file__).resolve().parents[3] / "shared" / "data" / "real"))
+REAL = Path(os.environ.get("DEPTHBENCH_REAL_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "real"))
 
 
 def synthetic_frame(seed: int = 0):

@@ -12,7 +12,7 @@ and reports:
 
 Usage::
 
-    .venv/bin/python bench/perf/record_rate.py [--source DIR] [--seconds 10] [--max-sensors 8]
+    .venv/bin/python perf/record_rate.py [--source DIR] [--seconds 10] [--max-sensors 8]
 
 ``--source`` keeps (or reuses) the simulated source session; without it one is simulated into
 a temporary folder (about 30 s). Output sessions go to a temporary folder and are deleted.
@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from capture.drivers import SensorConfig  # noqa: E402
 from capture.drivers.replay import ReplayDriver  # noqa: E402

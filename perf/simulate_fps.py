@@ -1,6 +1,6 @@
 """Simulator throughput: frames of scene time per second for each rig, and where the time goes.
 
-Run:  .venv/bin/python bench/perf/simulate_fps.py [--seconds 3] [--scene people] [--workers N] [--repeat 3]
+Run:  .venv/bin/python perf/simulate_fps.py [--seconds 3] [--scene people] [--workers N] [--repeat 3]
 
 For each rig at the default resolutions (lq-hq: 640x480 stereo + 512x424 ToF + 960x540 colour),
 it simulates ``--seconds`` of scene time into a temporary folder and prints:
@@ -28,9 +28,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-import capture.sim.pipeline as pipeline
 from capture.sim import RIGS, simulate
-from capture.sim.render import Renderer
 
 STAGES = ("raycast", "shade", "noise", "encode", "write")
 
@@ -41,18 +39,18 @@ def _cpu_seconds() -> float:
     return t.user + t.system + t.children_user + t.children_system
 
 
-def _run(out: Path, rig: str, args, *, workers: int | None) -> dict:
+def _run(out: Path, rig: str, args, *, workers: int | None, reference: bool = False) -> dict:
     """Best of ``args.repeat`` runs (highest wall rate; the machine may be shared)."""
-    runs = [_run_once(out, rig, args, workers=workers) for _ in range(args.repeat)]
+    runs = [_run_once(out, rig, args, workers=workers, reference=reference) for _ in range(args.repeat)]
     best = max(runs, key=lambda m: m["fps"])
     best["cpu_per_frame_ms"] = min(m["cpu_per_frame_ms"] for m in runs)
     return best
 
 
-def _run_once(out: Path, rig: str, args, *, workers: int | None) -> dict:
+def _run_once(out: Path, rig: str, args, *, workers: int | None, reference: bool = False) -> dict:
     cpu0 = _cpu_seconds()
     r = simulate(out, rig=rig, scene=args.scene, seconds=args.seconds, seed=1, force=True, progress=False,
-                 workers=workers)
+                 workers=workers, reference=reference)
     frames = args.seconds * 30.0
     return {"fps": r.scene_frames_per_s, "wall": r.elapsed_s,
             "per_frame_ms": {s: 1e3 * r.timings_s.get(s, 0.0) / frames for s in STAGES},
@@ -70,19 +68,7 @@ def _print(label: str, m: dict, ref: dict | None, cores: int) -> None:
 
 def _reference(out: Path, args) -> dict:
     """lq-hq the straightforward way: every pixel cast every frame, encode after render, one process."""
-    original_renderer, original_loop = pipeline.Renderer, pipeline._render_in_process
-
-    def plain(plan, events):
-        worker = pipeline.FrameWorker(plan, nthreads=0)
-        for ev in events:
-            yield worker.render(ev)
-
-    pipeline.Renderer = lambda scene, **kw: Renderer(scene, **kw, reuse_still=False)
-    pipeline._render_in_process = plain
-    try:
-        return _run(out, "lq-hq", args, workers=1)
-    finally:
-        pipeline.Renderer, pipeline._render_in_process = original_renderer, original_loop
+    return _run(out, "lq-hq", args, workers=1, reference=True)
 
 
 def main() -> None:

@@ -62,10 +62,10 @@ class _Stage:
 class FrameWorker:
     """Renders and encodes frames of a :class:`Plan` (one per process)."""
 
-    def __init__(self, plan: Plan, *, nthreads: int = 0) -> None:
+    def __init__(self, plan: Plan, *, nthreads: int = 0, reuse_still: bool = True) -> None:
         self.plan = plan
         scene = build_scene(plan.scene_name, seed=plan.seed, static=plan.static)
-        self.renderer = Renderer(scene, nthreads=nthreads)
+        self.renderer = Renderer(scene, nthreads=nthreads, reuse_still=reuse_still)
         self.cams = {s.id: SensorCameras(camera_rays(s.depth, s.T_world_depth),
                                          None if s.color_is_depth else camera_rays(s.color, s.T_world_color))
                      for s in plan.rig.sensors}
@@ -111,12 +111,18 @@ def _depth_png(counts: np.ndarray) -> bytes:
 _AHEAD = 2
 
 
-def render_frames(plan: Plan, events: list[Event], *, workers: int) -> Iterator[EncodedFrame]:
+def render_frames(plan: Plan, events: list[Event], *, workers: int, reference: bool = False) -> Iterator[EncodedFrame]:
     """Yield the encoded frames of ``events`` in order.
 
     ``workers`` <= 1: in this process; Embree casts on every core, and a thread encodes frame
     n while frame n + 1 renders (the encoders and the numba kernels release the GIL).
-    ``workers`` > 1: that many worker processes (:mod:`capture.sim.worker`)."""
+    ``workers`` > 1: that many worker processes (:mod:`capture.sim.worker`).
+    ``reference``: the straightforward way, the yardstick of ``perf/simulate_fps.py``: one
+    process, every pixel cast every frame (no reuse of still geometry), encoding after rendering."""
+    if reference:
+        worker = FrameWorker(plan, nthreads=0, reuse_still=False)
+        yield from (worker.render(ev) for ev in events)
+        return
     if workers <= 1:
         yield from _render_in_process(plan, events)
         return

@@ -67,7 +67,7 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
              effects=None, undeclared: bool = False, force: bool = False, time_shift_us: int | None = None,
              static: bool = False, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: float = 30.0,
              color_encoding: str = "auto", progress: bool = True, name: str | None = None,
-             workers: int | None = None) -> SimulationResult:
+             workers: int | None = None, reference: bool = False) -> SimulationResult:
     """Simulate rig ``rig`` filming scene ``scene`` for ``seconds`` and write a session to ``out``.
 
     Args:
@@ -84,6 +84,8 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         color_encoding: ``png`` or ``jpeg`` for every colour stream; ``auto``: PNG for LQ, JPEG for HQ.
         workers: rendering processes (None: 1 on two cores, else one per core, at most 4, for
             runs of 240+ frames; 1: render in this process; the bytes do not depend on it).
+        reference: render the straightforward way (one process, every pixel every frame, encoding
+            after rendering): the yardstick that ``perf/simulate_fps.py`` compares against.
     Returns:
         :class:`SimulationResult`. Read the truth with :func:`capture.truth.read_truth`.
     """
@@ -98,7 +100,7 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
     timings = Timings()
     try:
         truth = TruthWriter(writer.root, plan)
-        _render_all(plan, writer, truth, timings, progress=progress, workers=workers)
+        _render_all(plan, writer, truth, timings, progress=progress, workers=workers, reference=reference)
         with timings("truth"):
             truth.close()
         root = writer.close()
@@ -174,13 +176,13 @@ def _default_workers(n_events: int) -> int:
 
 
 def _render_all(plan: Plan, writer: SessionWriter, truth: TruthWriter, timings: Timings, *, progress: bool,
-                workers: int | None) -> None:
+                workers: int | None, reference: bool = False) -> None:
     events = _events(plan)
     workers = _default_workers(len(events)) if workers is None else workers
     bar = tqdm(total=len(events), desc=f"simulate {plan.rig.name}", unit="frame", file=sys.stderr,
                disable=not progress, leave=False)
     with bar:
-        for enc in render_frames(plan, events, workers=workers):
+        for enc in render_frames(plan, events, workers=workers, reference=reference):
             for stage, s in enc.stage_s.items():
                 timings[stage] = timings.get(stage, 0.0) + s
             with timings("write"):

@@ -127,3 +127,43 @@ def test_methods_run_and_bench_run_treat_an_empty_frame_alike(seq_data, tmp_path
     rows = res.table[(res.table["method"] == "test_temporal_mean") & (res.table["frame"] == 3)
                      & res.table["bin_lo_m"].isna() & (res.table["reference"] == "hq")].set_index("metric")["value"]
     assert rows["n_valid"] == 0 and rows["fill_rate"] == 0 and np.isnan(rows["mae_mm"])
+
+
+def test_bench_cli_takes_method_params_and_all_includes_learned_methods_with_weights(seq_data, tmp_path, capsys):
+    a, _, weights = seq_data
+    register(TemporalMean)
+    try:
+        r = _main(capsys, "bench", "run", "--data", a, "--methods", "all", "--param",
+                  f"test_temporal_mean.weights={weights}", "--param", "bf.sigma_color=0.03", "--out", tmp_path / "r",
+                  "--jobs", "1", "--radius-mm", "40", "--no-report")
+        assert r.returncode == 0, r.stderr
+        manifest = json.loads((tmp_path / "r" / R.MANIFEST).read_text())
+        keys = {m["key"] for m in manifest["methods"]}
+        assert TemporalMean(weights=str(weights)).key in keys
+        assert any(k.startswith("bilateral@") and "sigma_color=0.03" in k for k in keys)
+        r = _main(capsys, "bench", "run", "--data", a, "--methods", "all", "--out", tmp_path / "r2", "--jobs", "1",
+                  "--radius-mm", "40", "--no-report")      # without weights the learned method is not in 'all'
+        assert r.returncode == 0, r.stderr
+        assert "test_temporal_mean" not in {m["name"] for m in json.loads((tmp_path / "r2" / R.MANIFEST).read_text())["methods"]}
+        r = _main(capsys, "bench", "run", "--data", a, "--methods", "raw", "--param", "bf.sigma_color=0.03",
+                  "--out", tmp_path / "r3")
+        assert_one_line_error(r, "--param", "'bilateral' is not among the methods")
+        r = _main(capsys, "bench", "run", "--data", a, "--methods", "raw", "--param", "nosuch", "--out", tmp_path / "r3")
+        assert_one_line_error(r, "--param 'nosuch'", "METHOD.NAME=VALUE")
+        assert not (tmp_path / "r3").exists()
+    finally:
+        unregister(TemporalMean.name)
+
+
+def test_a_method_refusing_a_dataset_stops_both_runs_before_any_work(seq_data, tmp_path):
+    from methods.errors import MethodError
+    from methods.run import denoise_dataset
+    from tests.methods.seq_helpers import RefuseDataset
+
+    a, b, _ = seq_data
+    with pytest.raises(MethodError, match="in its training split"):
+        _run([b, a], ["raw", RefuseDataset()], tmp_path / "r", jobs=1)
+    with pytest.raises(MethodError, match="in its training split"):
+        denoise_dataset(RefuseDataset(), a, tmp_path / "m", progress=False)
+    assert list(tmp_path.iterdir()) == []
+    assert _run([b], [RefuseDataset()], tmp_path / "ok", jobs=1).computed == 5 + 5

@@ -114,3 +114,17 @@ def temporal_mean_reference(frames: list[np.ndarray], *, alpha: float, offset_m:
             if t >= start:
                 out.append((y + offset_m).astype(np.float32))
     return out
+
+
+class RefuseDataset(Denoiser):
+    """A method that refuses to be scored on the dataset named ``name`` (as a learned method refuses its training data)."""
+
+    name = "test_refuse_dataset"
+    defaults = {"name": "S1"}
+
+    def check_dataset(self, dataset):
+        if dataset.name == self.params["name"]:
+            raise MethodError(f"{self.name}: {dataset.root} is in its training split")
+
+    def _denoise(self, depth, color, camera):
+        return depth.copy()

@@ -1,0 +1,53 @@
+"""The demo on a tiny configuration: every stage runs through the library and the outputs agree with it."""
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from bench import results as R
+from depthbench.demo import DemoConfig, run_demo
+from tests.conftest import assert_one_line_error
+
+#: Under a second of scene time at half resolution, six probe frames, two methods, no reports.
+TINY = DemoConfig(seconds=0.8, seed=3, scale=0.5, methods="raw,gaussian", jobs=1, progress=False, probes=6,
+                  reports=False)
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "out"
+    return run_demo(out, config=TINY)
+
+
+def test_demo_runs_every_stage_into_its_folder(demo):
+    assert [s.status for s in demo.steps] == ["done"] * 3
+    assert [s.output.name for s in demo.steps] == ["session", "aligned", "results"]
+    assert (demo.out / "session" / "session.json").is_file()
+    assert (demo.out / "aligned" / "aligned.json").is_file()
+    table = R.load_results(demo.out / "results")
+    assert set(table["method"]) == {"raw", "gaussian", "hq_sensor"}
+    assert demo.steps[0].command.startswith("depthbench capture simulate --rig lq-hq")
+
+
+def test_demo_results_equal_the_benchmark_library_on_its_aligned_data(demo, tmp_path):
+    """The demo's bench step is run_benchmark with the command line's defaults: the same table."""
+    from bench.runner import run_benchmark
+
+    again = run_benchmark([demo.out / "aligned"], "raw,gaussian", tmp_path / "r", jobs=1, report=False)
+    pd.testing.assert_frame_equal(R.load_results(demo.out / "results"), again.table, check_exact=True)
+
+
+def test_demo_refuses_an_existing_folder_and_bad_seconds(tmp_path, capsys):
+    from depthbench.cli import main
+
+    (tmp_path / "x").mkdir()
+    (tmp_path / "x" / "keep.txt").write_text("mine")
+    rc = main(["demo", "--out", str(tmp_path / "x"), "--seconds", "1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "exists" in err and (tmp_path / "x" / "keep.txt").read_text() == "mine"
+    rc = main(["demo", "--out", str(tmp_path / "y"), "--seconds", "0"])
+    err = capsys.readouterr().err
+    from tests.conftest import CliResult
+
+    assert_one_line_error(CliResult(rc, "", err), "--seconds must be positive")
+    assert not (tmp_path / "y").exists()

@@ -13,6 +13,9 @@ key                shape           meaning
 ``<extra>``        (T, 1, h, w)    any extra per-frame depth layer given to the dataset
                                    (e.g. out-of-fold level-1 predictions), metres, NaN = none
 ``has_color``      ()              1 when the dataset has colour
+``camera``         (4,)            LQ depth intrinsics of the crop as seen: ``fx, fy, cx', cy'`` in
+                                   pixels, ``cx' = cx - x0``, ``cy' = cy - y0`` and, flipped,
+                                   ``cx' = (w - 1) - cx'`` (distortion ignored)
 ``index``          (2,)            (dataset number, first frame) of the sample
 =================  ==============  ==========================================================
 
@@ -88,6 +91,14 @@ def crop_box(shape: tuple[int, int], crop: int, rng: np.random.Generator) -> tup
     return y0, x0, crop, crop
 
 
+def crop_camera(K, *, y0: int, x0: int, w: int, flip: bool) -> torch.Tensor:
+    """Intrinsics ``(fx, fy, cx, cy)`` of a crop at ``(y0, x0)`` of width ``w``, mirrored when ``flip``."""
+    cx, cy = K.cx - x0, K.cy - y0
+    if flip:
+        cx = (w - 1) - cx
+    return torch.tensor([K.fx, K.fy, cx, cy], dtype=torch.float32)
+
+
 class AlignedSamples(Dataset):
     """Samples (frames or sequences) of aligned datasets, with registered random crops and flips.
 
@@ -157,5 +168,6 @@ class AlignedSamples(Dataset):
             out[name] = np.stack([take(arr[i]) for i in range(win.start, win.start + win.length)])[:, None]
         sample = {k2: torch.from_numpy(np.ascontiguousarray(v, dtype=np.float32)) for k2, v in out.items()}
         sample["has_color"] = torch.tensor(float(cache.has_color))
+        sample["camera"] = crop_camera(cache.ds.lq_intrinsics, y0=y0, x0=x0, w=w, flip=flip)
         sample["index"] = torch.tensor([win.dataset, win.start])
         return sample

@@ -49,8 +49,9 @@ HISTORY = "history.csv"
 CURVES = "curves.png"
 HISTORY_COLUMNS = ("epoch", "train_loss", "val_loss", "seconds", "samples_per_s")
 
-#: ``loss(model, batch) -> scalar``: the batch's mean loss (see :mod:`methods.nn.losses`).
-LossFn = Callable[[nn.Module, dict], torch.Tensor]
+#: ``loss(model, batch) -> scalar`` or ``(scalar, {term: scalar})``: the batch's mean loss (see
+#: :mod:`methods.nn.losses`); named terms are averaged per epoch into the history (``train_<term>``).
+LossFn = Callable[[nn.Module, dict], "torch.Tensor | tuple[torch.Tensor, dict]"]
 
 
 @dataclass
@@ -128,6 +129,19 @@ class _Shard(torch.utils.data.Sampler):
         return len(self.batches)
 
 
+def _split_loss(out) -> tuple[torch.Tensor, dict]:
+    if isinstance(out, tuple):
+        return out[0], dict(out[1])
+    return out, {}
+
+
+def batch_len(batch: dict) -> int:
+    """Samples in a (local) batch: the length of ``index`` or of the first tensor."""
+    if "index" in batch:
+        return len(batch["index"])
+    return len(next(v for v in batch.values() if torch.is_tensor(v)))
+
+
 def _to(batch: dict, device: torch.device) -> dict:
     return {k: v.to(device, non_blocking=True) if torch.is_tensor(v) else v for k, v in batch.items()}
 
@@ -140,19 +154,19 @@ def _optimizer(model: nn.Module, optim: OptimConfig) -> torch.optim.Optimizer:
     return torch.optim.Adam(model.parameters(), lr=optim.lr, weight_decay=optim.weight_decay)
 
 
-def _train_epoch(job: FitJob, net: nn.Module, opt, epoch: int, d: Dist, progress: bool) -> tuple[float, int]:
-    """One epoch; returns (mean training loss over all processes, samples seen by all processes)."""
+def _train_epoch(job: FitJob, net: nn.Module, opt, epoch: int, d: Dist, progress: bool) -> tuple[float, int, dict]:
+    """One epoch; returns (mean training loss over all processes, samples seen, mean of each named term)."""
     job.train.set_epoch(epoch)
     batches = epoch_batches(len(job.train), optim=job.optim, epoch=epoch)
     net.train()
-    total, count = 0.0, 0
+    total, count, terms = 0.0, 0, {}
     bar = tqdm(_loader(job.train, batches, d, job.num_workers), total=len(batches), file=sys.stderr,
                desc=f"{job.name} epoch {epoch + 1}/{job.optim.epochs}", unit="batch", leave=False,
                disable=None if (progress and d.main) else True, dynamic_ncols=True)
     for batch in bar:
         batch = _to(batch, d.device)
         opt.zero_grad(set_to_none=True)
-        loss = job.loss(net, batch)
+        loss, parts = _split_loss(job.loss(net, batch))
         if not torch.isfinite(loss):
             raise TrainingError(f"{job.name}: the loss became {loss.item()} in epoch {epoch + 1}; "
                                 "lower optim.lr or check the data")
@@ -160,11 +174,16 @@ def _train_epoch(job: FitJob, net: nn.Module, opt, epoch: int, d: Dist, progress
         if job.optim.grad_clip:
             nn.utils.clip_grad_norm_(net.parameters(), job.optim.grad_clip)
         opt.step()
-        total += float(loss.detach()) * len(batch["index"])
-        count += len(batch["index"])
+        n = batch_len(batch)
+        total += float(loss.detach()) * n
+        count += n
+        for k, v in parts.items():
+            terms[k] = terms.get(k, 0.0) + float(v) * n
         bar.set_postfix(loss=f"{loss.item():.5f}")
-    total, count = d.sum([total, count])
-    return total / max(count, 1), int(count)
+    names = sorted(terms)
+    sums = d.sum([total, count] + [terms[k] for k in names])
+    total, count = sums[0], sums[1]
+    return total / max(count, 1), int(count), {f"train_{k}": v / max(count, 1) for k, v in zip(names, sums[2:])}
 
 
 @torch.no_grad()
@@ -178,8 +197,8 @@ def evaluate(job: FitJob, net: nn.Module, d: Dist) -> float:
     total, count = 0.0, 0
     for batch in _loader(job.validation, batches, d, job.num_workers):
         batch = _to(batch, d.device)
-        total += float(job.loss(net, batch)) * len(batch["index"])
-        count += len(batch["index"])
+        total += float(_split_loss(job.loss(net, batch))[0]) * batch_len(batch)
+        count += batch_len(batch)
     total, count = d.sum([total, count])
     return total / max(count, 1)
 
@@ -217,11 +236,11 @@ def fit(job: FitJob, d: Dist, *, resume: bool = False, progress: bool = True) ->
         job.folder.mkdir(parents=True, exist_ok=True)
     for epoch in range(start, job.optim.epochs):
         t0 = time.perf_counter()
-        train_loss, n = _train_epoch(job, net, opt, epoch, d, progress)
+        train_loss, n, terms = _train_epoch(job, net, opt, epoch, d, progress)
         seconds = time.perf_counter() - t0
         val_loss = evaluate(job, net, d)
         history.append({"epoch": epoch + 1, "train_loss": train_loss, "val_loss": val_loss,
-                        "seconds": round(seconds, 3), "samples_per_s": round(n / seconds, 2) if seconds > 0 else 0.0})
+                        "seconds": round(seconds, 3), "samples_per_s": round(n / seconds, 2) if seconds > 0 else 0.0, **terms})
         if d.main:
             _save_checkpoint(job, model, opt, history)
             if progress:
@@ -236,7 +255,8 @@ def fit(job: FitJob, d: Dist, *, resume: bool = False, progress: bool = True) ->
 
 def history_csv(history: list[dict]) -> str:
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(HISTORY_COLUMNS), extrasaction="ignore", lineterminator="\n")
+    extra = sorted({k for h in history for k in h} - set(HISTORY_COLUMNS))
+    w = csv.DictWriter(buf, fieldnames=list(HISTORY_COLUMNS) + extra, extrasaction="ignore", lineterminator="\n")
     w.writeheader()
     w.writerows(history)
     return buf.getvalue()

@@ -41,8 +41,16 @@ def test_sequences_crops_flips_stay_registered(coded):
                 np.testing.assert_allclose(ref[~hole], expected[~hole] + 0.5, atol=6e-5)
                 np.testing.assert_array_equal(s["valid"][t, 0].numpy(), (~hole).astype(np.float32))
                 np.testing.assert_array_equal(s["roi"][t, 0].numpy(), (x % 2 == 0).astype(np.float32))
-            x0, _, _ = _decode(s, 0)
-            flips.add(bool(x0[0, 0] > x0[0, -1]))
+            x0, y0, _ = _decode(s, 0)
+            flipped = bool(x0[0, 0] > x0[0, -1])
+            flips.add(flipped)
+            # the crop's camera: pixel (i, j) of the sample sees the ray of the decoded source pixel
+            K = coded[d].lq_intrinsics
+            fx, fy, cx, cy = s["camera"].tolist()
+            jj, ii = np.meshgrid(np.arange(16), np.arange(16))
+            sign = -1 if flipped else 1
+            np.testing.assert_allclose(sign * (x0 - K.cx) / K.fx, (jj - cx) / fx, atol=1e-5)
+            np.testing.assert_allclose((y0 - K.cy) / K.fy, (ii - cy) / fy, atol=1e-5)
             assert (np.abs(np.diff(x0, axis=1)) == 1).all()        # contiguous columns, flipped or not
     assert flips == {True, False}
 

@@ -423,6 +423,9 @@ def build_report(df: pd.DataFrame, *, root: Path, config: dict | None, n_boot: i
     _summary_section(doc, df, "hq", n_boot=n_boot, seed=seed)
     if (df["reference"] == "truth").any():
         _summary_section(doc, df, "truth", n_boot=n_boot, seed=seed)
+    from bench.table_i import table_i_section
+
+    table_i_section(doc, df, n_boot=n_boot, seed=seed)
     _sequence_section(doc, df)
     _depth_section(doc, df, config)
     _qualitative_section(doc, df, root, datasets, max_qualitative)

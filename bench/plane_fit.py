@@ -37,6 +37,7 @@ Two exact implementations, equal to a per-point brute force (tests):
 
 Plane normals come from a vectorised closed-form 3x3 symmetric eigen-solver (trigonometric
 eigenvalues, cross-product eigenvector), ~30x faster than batched ``numpy.linalg.eigh``.
+
 The searches themselves are in :mod:`bench.plane_search`; this module fits the planes and scores.
 """
 from __future__ import annotations
@@ -150,6 +151,7 @@ class ReferencePlanes:
         normal: ``(N, 3)`` unit plane normals (NaN where excluded).
         status: ``(N,)`` int8: 1 plane, 2 too few neighbours, 3 degenerate.
         method: ``"grid"`` or ``"kdtree"``.
+        radius_m: the neighbourhood radius, metres; intrinsics: the camera the points were unprojected with.
     """
 
     mask: np.ndarray
@@ -253,7 +255,7 @@ def fit_reference_planes(ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.nda
     return planes
 
 
-def _ring1_sums(G: Grid, X: list[np.ndarray], fi: np.ndarray, cuts: np.ndarray, r2: float,
+def _ring1_sums(G: Grid, X: list[np.ndarray], fi: np.ndarray, *, cuts: np.ndarray, r2: float,
                 threads: int) -> np.ndarray:
     """``(10, N)`` ring-1 neighbourhood sums of the points at flat padded indices ``fi`` (increasing;
     ``cuts[k]:cuts[k+1]`` are those in row strip ``k``), computed strip by strip."""
@@ -292,11 +294,12 @@ def _fit_grid(planes: ReferencePlanes, ref: np.ndarray, *, min_neighbors: int, m
         reach = np.where(z > r, r * sq.ravel()[idx] / (z - r), np.inf) * (1.0 + 1e-9) + 1e-12
     fallback = reach >= beyond_cap(K)
     cuts = np.searchsorted(idx, [(crop[0].start + v0) * W for v0, _ in G.strips] + [H * W])
-    sums = _ring1_sums(G, X, fi, cuts, r * r, threads)
+    sums = _ring1_sums(G, X, fi, cuts=cuts, r2=r * r, threads=threads)
     groups = deep_groups(K.fx, K.fy)
     deep = np.flatnonzero((reach >= groups[0][0]) & ~fallback)
     if deep.size:
-        run_threads(lambda a, b: deep_sums(G, X, sums, fi[deep[a:b]], deep[a:b], reach[deep[a:b]], groups, r * r),
+        run_threads(lambda a, b: deep_sums(G, X, sums, fp=fi[deep[a:b]], pos=deep[a:b], reach=reach[deep[a:b]],
+                                           groups=groups, r2=r * r),
                     chunks(deep.size, max(threads, deep.size // STRIP_ELEMENTS)), threads)
     mean, normal, status = np.empty((N, 3)), np.empty((N, 3)), np.empty(N, np.int8)
 
@@ -375,7 +378,7 @@ def _closest_points(pred: np.ndarray, pred_valid: np.ndarray, planes: ReferenceP
     q = np.empty((ev.size, 3))
     todo = np.arange(ev.size)
     if planes.method == "grid" and ev.size:
-        todo = _closest_grid(pred, pred_valid, planes, ev, p[:, 2], q, threads=threads)
+        todo = _closest_grid(pred, pred_valid, planes, ev, z=p[:, 2], q=q, threads=threads)
     if todo.size:
         qv = np.flatnonzero(pred_valid)
         zq = pred.ravel()[qv].astype(np.float64)
@@ -383,8 +386,8 @@ def _closest_points(pred: np.ndarray, pred_valid: np.ndarray, planes: ReferenceP
     return q
 
 
-def _closest_grid(pred: np.ndarray, pred_valid: np.ndarray, planes: ReferencePlanes, ev: np.ndarray,
-                  z: np.ndarray, q: np.ndarray, *, threads: int) -> np.ndarray:
+def _closest_grid(pred: np.ndarray, pred_valid: np.ndarray, planes: ReferencePlanes, ev: np.ndarray, *,
+                  z: np.ndarray, q: np.ndarray, threads: int) -> np.ndarray:
     """Grid closest-point search for the scored pixels ``ev`` (reference depth ``z``), written into ``q``.
 
     Returns the positions (sorted) whose answer the window cap could not prove (for the KD-tree).
@@ -399,7 +402,7 @@ def _closest_grid(pred: np.ndarray, pred_valid: np.ndarray, planes: ReferencePla
     bd, qi = np.empty(ev.size), np.empty(ev.size, np.int64)
 
     def near(v0, v1, a, b):
-        bd[a:b], qi[a:b] = strip_closest(G, planes.grid_points, Xq, fp[a:b], v0, v1)
+        bd[a:b], qi[a:b] = strip_closest(G, planes.grid_points, Xq, fp[a:b], v0=v0, v1=v1)
 
     run_threads(near, [(v0, v1, a, b) for (v0, v1), a, b in zip(G.strips, cuts[:-1], cuts[1:]) if b > a], threads)
     s = sq.ravel()[ev]
@@ -411,7 +414,8 @@ def _closest_grid(pred: np.ndarray, pred_valid: np.ndarray, planes: ReferencePla
         def widen(a, b):
             sel = deep[a:b]
             sbd, sqi = bd[sel], qi[sel]
-            still = deep_closest(G, planes.grid_points, Xq, fp[sel], sbd, sqi, z[sel], s[sel], groups, beyond_cap(K))
+            still = deep_closest(G, planes.grid_points, Xq, fp[sel], bd=sbd, qi=sqi, z=z[sel], s=s[sel],
+                                 groups=groups, beyond=beyond_cap(K))
             bd[sel], qi[sel] = sbd, sqi
             open_parts.append(sel[still])
 

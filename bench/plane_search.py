@@ -198,8 +198,8 @@ def strip_sums(G: Grid, X: list[np.ndarray], r2: float, v0: int, v1: int) -> np.
     return acc
 
 
-def deep_sums(G: Grid, X: list[np.ndarray], sums: np.ndarray, fp: np.ndarray, pos: np.ndarray,
-               reach: np.ndarray, groups, r2: float) -> None:
+def deep_sums(G: Grid, X: list[np.ndarray], sums: np.ndarray, *, fp: np.ndarray, pos: np.ndarray,
+              reach: np.ndarray, groups, r2: float) -> None:
     """Add the neighbours at Chebyshev distance >= 2 of the pixels ``fp`` (flat padded; ``pos`` their
     columns in ``sums``) to ``sums``.
 
@@ -228,8 +228,8 @@ def deep_sums(G: Grid, X: list[np.ndarray], sums: np.ndarray, fp: np.ndarray, po
                     sums[4 + j, ph] += dh[a] * dh[b]
 
 
-def strip_closest(G: Grid, Xr: list[np.ndarray], Xq: list[np.ndarray], fp: np.ndarray, v0: int,
-                   v1: int) -> tuple[np.ndarray, np.ndarray]:
+def strip_closest(G: Grid, Xr: list[np.ndarray], Xq: list[np.ndarray], fp: np.ndarray, *, v0: int,
+                  v1: int) -> tuple[np.ndarray, np.ndarray]:
     """Closest denoised point among the 3x3 window of each scored pixel ``fp`` (flat padded, rows ``v0..v1``).
 
     Returns ``(squared distance, flat index of that point)``.
@@ -254,7 +254,7 @@ def strip_closest(G: Grid, Xr: list[np.ndarray], Xq: list[np.ndarray], fp: np.nd
     return sub[arg, np.arange(loc.size)], fp + np.asarray(offsets)[arg]
 
 
-def deep_closest(G: Grid, Xr, Xq, fp, bd, qi, z, s, groups, beyond: float) -> np.ndarray:
+def deep_closest(G: Grid, Xr, Xq, fp, *, bd, qi, z, s, groups, beyond: float) -> np.ndarray:
     """Widen the closest-point search of pixels ``fp`` (in place on ``bd``/``qi``) until proven.
 
     After visiting every offset shorter than ``e`` (normalised), no unvisited pixel's point can be

@@ -153,7 +153,8 @@ class _Builder:
         while len(self._pending) > keep or (self._pending and self._pending[0][0].done()):
             future, sid, stream, number, dev, host = self._pending.popleft()
             rel, sha = future.result()
-            self.writer.index_frame(sid, stream, number, dev, host, rel, sha)
+            self.writer.index_frame(sid, stream, number, device_timestamp_us=dev, host_timestamp_us=host, rel=rel,
+                                    sha256=sha)
             self._bar.update(1)
 
     def finish(self, notes: dict[str, Any] | None = None) -> ImportResult:

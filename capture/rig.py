@@ -96,8 +96,8 @@ def parse_rig(data: dict, *, where: str | os.PathLike = "rig", base_dir: str | o
     if not isinstance(clock, dict):
         raise RigError(f"{where}: clock_facts must be a table")
     _no_unknown(clock, _CLOCK_KEYS, f"{where}: clock_facts")
-    return Rig(name, sensors, time_base, extrinsics, dict(clock), str(data.get("description", "")),
-               Path(where) if base_dir is not None else None)
+    return Rig(name=name, sensors=sensors, time_base=time_base, extrinsics=extrinsics, clock_facts=dict(clock),
+               description=str(data.get("description", "")), path=Path(where) if base_dir is not None else None)
 
 
 def _no_unknown(d: dict, allowed: set[str], where: str) -> None:
@@ -144,7 +144,8 @@ def _sensor(s: Any, index: int, where, base_dir) -> SensorConfig:
                 raise RigError(f"{at}: options.{key} must be a path string")
             if base_dir is not None:
                 options[key] = str((Path(base_dir) / options[key]).resolve())
-    return SensorConfig(sid, role, driver, serial.strip(), streams, dict(s.get("sync", {})), options, model)
+    return SensorConfig(id=sid, role=role, driver=driver, serial=serial.strip(), streams=streams,
+                        sync=dict(s.get("sync", {})), options=options, model=model)
 
 
 def _stream(name: str, v: Any, at: str) -> StreamSettings:
@@ -169,7 +170,8 @@ def _stream(name: str, v: Any, at: str) -> StreamSettings:
             raise RigError(f"{where}: encoding must be one of {', '.join(ENCODINGS)}, got {enc!r}")
         if (stype == "color") == (enc == "png16"):
             raise RigError(f"{where}: encoding {enc!r} does not fit a {stype} stream")
-    return StreamSettings(name, stype, v.get("width"), v.get("height"), None if fps is None else float(fps), enc)
+    return StreamSettings(name=name, type=stype, width=v.get("width"), height=v.get("height"),
+                          fps=None if fps is None else float(fps), encoding=enc)
 
 
 def _extrinsic(e: Any, index: int, where, sensor_ids: set[str]) -> dict:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -138,9 +138,9 @@ def _camera(cam: dict, where: str) -> CameraCalibration:
         rt = cam["Rt"]
         R = np.array([float(v) for v in rt["Rotation"]], dtype=np.float64).reshape(3, 3)
         t = np.array([float(v) for v in rt["Translation"]], dtype=np.float64).reshape(3)
-        return CameraCalibration(cam.get("Purpose", "?"), intr["ModelType"], params,
-                                 (int(cam["SensorWidth"]), int(cam["SensorHeight"])), R, t,
-                                 float(cam.get("MetricRadius", 0.0)))
+        return CameraCalibration(purpose=cam.get("Purpose", "?"), model_type=intr["ModelType"], params=params,
+                                 sensor_size=(int(cam["SensorWidth"]), int(cam["SensorHeight"])), R=R, t_m=t,
+                                 metric_radius=float(cam.get("MetricRadius", 0.0)))
     except (KeyError, TypeError, ValueError) as exc:
         raise CalibrationError(f"{where}: malformed camera entry ({type(exc).__name__}: {exc})") from None
 
@@ -188,8 +188,7 @@ def _color_intrinsics(color: CameraCalibration, size: tuple[int, int], where: st
         bw, bh, crop_y, out_h = 4096, 2304, -384, 3072
         p[0], p[1] = p[0] * bw / 4096, (p[1] * bh - crop_y) / out_h
         p[2], p[3] = p[2] * bw / 4096, p[3] * bh / out_h
-        cam = CameraCalibration(color.purpose, color.model_type, tuple(p), (4096, 3072), color.R, color.t_m,
-                                color.metric_radius)
+        cam = replace(color, params=tuple(p), sensor_size=(4096, 3072))
     elif w * 3 // 4 != h:
         raise CalibrationError(f"{where}: colour calibration size {w}x{h} is neither 4:3 nor 16:9")
     mode = COLOR_MODES.get(int(size[1]))
@@ -253,7 +252,8 @@ class AzureKinectRecording:
                             image = self._decode(track, bytes(packet))
                             counts[track.name] += 1
                             device_us = pts_us + self.start_offset_us
-                            yield Frame(track.name, number, device_us, "device", device_us, image)
+                            yield Frame(stream=track.name, frame_number=number, device_timestamp_us=device_us,
+                                        clock_domain="device", host_timestamp_us=device_us, image=image)
                     except av.error.FFmpegError as exc:
                         raise SessionFormatError(f"{self.path}: corrupt recording ({_one_line(exc)})") from None
             errors = [m for level, _, m in logs if level <= av.logging.ERROR]
@@ -317,7 +317,8 @@ def _track_of(path: Path, s) -> _Track | None:
     codec = _FOURCC_FORMATS.get(tag) or ("mjpeg" if s.codec_context and s.codec_context.name == "mjpeg" else None)
     if codec is None or (name != "color" and codec != "b16g"):
         raise SessionFormatError(f"{path}: track {title} has unsupported codec {tag or '?'}")
-    return _Track(name, s.index, codec, s.codec_context.width, s.codec_context.height, s.time_base)
+    return _Track(name=name, index=s.index, codec=codec, width=s.codec_context.width, height=s.codec_context.height,
+                  time_base=s.time_base)
 
 
 def _read_container(path: Path) -> _MkvContents:
@@ -357,10 +358,13 @@ def _sensor_description(path: Path, tags: dict[str, str], calib: AzureCalibratio
         if name == "color":
             if calib.color_intrinsics is None:
                 raise SessionFormatError(f"{path}: colour track but no colour camera in the calibration")
-            descs[name] = StreamDescription(name, "color", t.width, t.height, fps, "png", calib.color_intrinsics)
+            descs[name] = StreamDescription(name=name, type="color", width=t.width, height=t.height, fps=fps,
+                                            encoding="png", intrinsics=calib.color_intrinsics)
         else:
-            descs[name] = StreamDescription(name, "depth" if name == "depth" else "ir", t.width, t.height, fps,
-                                            "png16", calib.depth_intrinsics, DEPTH_UNIT_M if name == "depth" else None)
+            descs[name] = StreamDescription(name=name, type="depth" if name == "depth" else "ir", width=t.width,
+                                            height=t.height, fps=fps, encoding="png16",
+                                            intrinsics=calib.depth_intrinsics,
+                                            depth_unit_m=DEPTH_UNIT_M if name == "depth" else None)
     firmware = ", ".join(f"{k.split('_')[1].lower()} {tags[k]}" for k in
                          ("K4A_DEPTH_FIRMWARE_VERSION", "K4A_COLOR_FIRMWARE_VERSION") if k in tags) or None
     clock = {"domain": "device", "wired_sync_mode": tags.get("K4A_WIRED_SYNC_MODE", "STANDALONE"),
@@ -483,8 +487,7 @@ class AzureKinectDriver(Driver):
                     return out
                 time.sleep((due - now) / 1e6)
             self._pending = None
-            out.append(Frame(f.stream, f.frame_number, f.device_timestamp_us, f.clock_domain, host_clock_us(),
-                             f.image, f.metadata))
+            out.append(replace(f, host_timestamp_us=host_clock_us()))
 
     def close(self) -> None:
         self._closed = True

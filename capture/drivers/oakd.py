@@ -132,8 +132,9 @@ def imgframe_to_frame(msg, stream: str, *, host_timestamp_us: int | None = None)
         image = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB) if bgr.ndim == 3 else cv2.cvtColor(bgr, cv2.COLOR_GRAY2RGB)
     metadata = {"host_synced_timestamp_us": timedelta_us(msg.getTimestamp())}
     host = host_clock_us() if host_timestamp_us is None else int(host_timestamp_us)
-    return Frame(stream, int(msg.getSequenceNum()), timedelta_us(msg.getTimestampDevice()), "device", host, image,
-                 metadata)
+    return Frame(stream=stream, frame_number=int(msg.getSequenceNum()),
+                 device_timestamp_us=timedelta_us(msg.getTimestampDevice()), clock_domain="device",
+                 host_timestamp_us=host, image=image, metadata=metadata)
 
 
 # ============================================================================ the pipeline
@@ -192,8 +193,9 @@ class OakDDriver(Driver):
         d = dai()
         out = []
         for info in d.Device.getAllAvailableDevices():
-            out.append(DeviceInfo("oakd", info.getDeviceId(), f"OAK ({info.platform.name})", None,
-                                  {"name": info.name, "state": info.state.name, "protocol": info.protocol.name}))
+            out.append(DeviceInfo(driver="oakd", serial=info.getDeviceId(), model=f"OAK ({info.platform.name})",
+                                  details={"name": info.name, "state": info.state.name,
+                                           "protocol": info.protocol.name}))
         return out
 
     @classmethod
@@ -248,7 +250,8 @@ class OakDDriver(Driver):
             asked = self.config.streams.get(n)
             encoding = (asked.encoding if asked is not None and asked.encoding else None) or (
                 "png16" if n == "depth" else "png")
-            descs[n] = StreamDescription(n, n, size[0], size[1], fps, encoding, K, DEPTH_UNIT_M if n == "depth" else None)
+            descs[n] = StreamDescription(name=n, type=n, width=size[0], height=size[1], fps=fps, encoding=encoding,
+                                         intrinsics=K, depth_unit_m=DEPTH_UNIT_M if n == "depth" else None)
         model = self._device.getProductName() or "Luxonis OAK-D"
         clock = {"domain": "device", "host_synced_timestamps": "frame metadata host_synced_timestamp_us",
                  "depth_aligned_to": "CAM_A"}

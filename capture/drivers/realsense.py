@@ -56,7 +56,7 @@ import queue
 import sqlite3
 import threading
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
 
@@ -312,7 +312,8 @@ class RealSenseSource:
             if not unit > 0:
                 raise self._error(f"{self.label}: depth scale {unit} is not positive")
         encoding = encoding or ("png" if kind == "color" else "png16")  # the rig may ask for jpeg colour
-        return StreamDescription(name, kind, v.width(), v.height(), float(v.fps()), encoding, conv.intrinsics, unit)
+        return StreamDescription(name=name, type=kind, width=v.width(), height=v.height(), fps=float(v.fps()),
+                                 encoding=encoding, intrinsics=conv.intrinsics, depth_unit_m=unit)
 
     def _describe(self) -> SensorDescription:
         T = None
@@ -368,8 +369,9 @@ class RealSenseSource:
         metadata = {n: int(frame.get_frame_metadata(m)) for n, m in _METADATA if frame.supports_frame_metadata(m)}
         host = self._host_time(frame) if self._host_time else host_clock_us()
         domain = str(frame.get_frame_timestamp_domain()).split(".")[-1]
-        return Frame(name, int(frame.get_frame_number()), timestamp_ms_to_us(frame.get_timestamp()), domain, int(host),
-                     image, metadata)
+        return Frame(stream=name, frame_number=int(frame.get_frame_number()),
+                     device_timestamp_us=timestamp_ms_to_us(frame.get_timestamp()), clock_domain=domain,
+                     host_timestamp_us=int(host), image=image, metadata=metadata)
 
     def _callback(self, frame) -> None:
         if self._closed.is_set():
@@ -579,8 +581,7 @@ class RealSenseRecording:
                     if use_toa:
                         raise SessionFormatError(f"{self.path}: frame {item.frame_number} of {item.stream} has no "
                                                  "time_of_arrival metadata but earlier frames do")
-                    item = Frame(item.stream, item.frame_number, item.device_timestamp_us, item.clock_domain,
-                                 item.device_timestamp_us, item.image, item.metadata)
+                    item = replace(item, host_timestamp_us=item.device_timestamp_us)
                 delivered[item.stream] += 1
                 yield item
         finally:
@@ -633,8 +634,9 @@ class RealSenseDriver(Driver):
                 return dev.get_info(k) if dev.supports(k) else None
             details = {k: v for k in ("product_line", "product_id", "usb_type_descriptor", "physical_port",
                                       "camera_locked") if (v := info(k))}
-            out.append(DeviceInfo("realsense", info("serial_number") or "?", info("name") or "Intel RealSense",
-                                  info("firmware_version"), details))
+            out.append(DeviceInfo(driver="realsense", serial=info("serial_number") or "?",
+                                  model=info("name") or "Intel RealSense", firmware=info("firmware_version"),
+                                  details=details))
         return out
 
     @classmethod
@@ -734,8 +736,7 @@ class RealSenseDriver(Driver):
             clock["inter_cam_sync_mode"] = sync["inter_cam_sync_mode"]
         if self._playback is not None:
             clock["played_from"] = str(Path(self.config.options["file"]).resolve())
-        desc = SensorDescription(desc.model, desc.serial, desc.streams, desc.firmware, desc.technology,
-                                 desc.T_depth_color, clock)
+        desc = replace(desc, clock=clock)
         self._source.start()
         if self._playback is not None:
             self._playback.resume()

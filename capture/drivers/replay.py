@@ -192,8 +192,9 @@ class ReplayDriver(Driver):
                 if req.fps is not None and abs(req.fps - info.fps) > 1e-6:
                     raise DeviceError(f"{label}: stream {name} runs at {info.fps:g} fps in the source, cannot deliver {req.fps:g}")
             encoding = (req.encoding if req is not None and req.encoding else info.encoding)
-            streams[name] = StreamDescription(name, info.type, info.width, info.height, info.fps, encoding,
-                                              info.intrinsics, info.depth_unit_m)
+            streams[name] = StreamDescription(name=name, type=info.type, width=info.width, height=info.height,
+                                              fps=info.fps, encoding=encoding, intrinsics=info.intrinsics,
+                                              depth_unit_m=info.depth_unit_m)
         self._build_schedule(s, streams)
         if self.preload:
             for e in self._events:

@@ -80,7 +80,8 @@ class TumFolder:
         events = sorted((t, 0 if s == "depth" else 1, i, s, rel)
                         for s, items in self.lists.items() for i, (t, rel) in enumerate(items))
         for t, _, i, stream, rel in events:
-            yield Frame(stream, i, t, "host", t, self._read(stream, rel))
+            yield Frame(stream=stream, frame_number=i, device_timestamp_us=t, clock_domain="host",
+                        host_timestamp_us=t, image=self._read(stream, rel))
 
     def _read(self, stream: str, rel: str) -> np.ndarray:
         list_file = self.root / ("depth.txt" if stream == "depth" else "rgb.txt")
@@ -138,10 +139,11 @@ def open_tum(folder: str | os.PathLike, *, intrinsics: Intrinsics | None = None,
         if not lists["color"]:
             del lists["color"]
     K = intrinsics or DEFAULT_INTRINSICS
-    streams = {"depth": StreamDescription("depth", "depth", K.width, K.height, float(fps), "png16", K,
-                                          float(1.0 / depth_scale))}
+    streams = {"depth": StreamDescription(name="depth", type="depth", width=K.width, height=K.height, fps=float(fps),
+                                          encoding="png16", intrinsics=K, depth_unit_m=float(1.0 / depth_scale))}
     if "color" in lists:
-        streams["color"] = StreamDescription("color", "color", K.width, K.height, float(fps), "png", K)
+        streams["color"] = StreamDescription(name="color", type="color", width=K.width, height=K.height,
+                                             fps=float(fps), encoding="png", intrinsics=K)
     desc = SensorDescription(model="Microsoft Kinect v1 (TUM RGB-D)", serial="tum", streams=streams,
                              technology="structured_light",
                              T_depth_color=Transform.identity() if "color" in lists else None,

@@ -319,6 +319,24 @@ def open_session(path: str | os.PathLike, *, verify: str = "index") -> Session:
     return Session(path, verify=verify)
 
 
+# ----------------------------------------------------------------------------- frame files
+def encode_frame(image: np.ndarray, info: StreamInfo, *, fast: bool = False, where: str = "frame") -> tuple[bytes, str]:
+    """One frame of the stream ``info`` as the session stores it: ``(file bytes, extension)``.
+
+    Depth/IR (``png16``): uint16 counts or float metres (NaN = none) ``(H, W)``; colour: RGB uint8
+    ``(H, W, 3)``, PNG or JPEG as the stream's ``encoding`` says. PNG settings
+    :data:`depthbench.frames.PNG_RLE`, or with ``fast`` :data:`~depthbench.frames.PNG_STORED` (same
+    pixels, larger file, several times less CPU). ``where`` names the frame in errors."""
+    params = codec.PNG_STORED if fast else codec.PNG_RLE
+    img = np.asarray(image)
+    if img.shape[:2] != (info.height, info.width):
+        raise SessionFormatError(f"{where}: frame is {img.shape[1]}x{img.shape[0]}, stream is {info.width}x{info.height}")
+    if info.encoding == "png16":
+        unit = info.depth_unit_m if info.type == "depth" else 1.0
+        return codec.encode_depth_png(img, unit_m=unit, params=params, where=where, error=SessionFormatError), "png"
+    return codec.encode_color(img, encoding=info.encoding, params=params, where=where, error=SessionFormatError)
+
+
 # ----------------------------------------------------------------------------- disk space
 #: Bytes of one ``frames.csv`` row, at most (stream name, three integers, path, sha256).
 _ROW_BYTES = 200
@@ -433,7 +451,7 @@ class SessionWriter:
         larger file). Returns ``(path relative to the session, sha256)``; call :meth:`index_frame`
         with them, in frame order per stream."""
         info = self.sensors[sensor].streams[stream]
-        data, ext = self._encode(image, info, f"{sensor}/{stream}", fast=fast)
+        data, ext = encode_frame(image, info, fast=fast, where=f"{sensor}/{stream}")
         rel = f"{sensor}/{stream}/{int(frame_number):08d}.{ext}"
         return rel, codec.write_frame_file(self.root / rel, data, fsync=self.fsync)
 
@@ -457,17 +475,6 @@ class SessionWriter:
             if self.fsync:
                 os.fsync(fd)
             self._last[(sensor, stream)] = (frame_number, dev, host)
-
-    @staticmethod
-    def _encode(image: np.ndarray, info: StreamInfo, name: str, *, fast: bool = False) -> tuple[bytes, str]:
-        params = codec.PNG_STORED if fast else codec.PNG_RLE
-        img = np.asarray(image)
-        if img.shape[:2] != (info.height, info.width):
-            raise SessionFormatError(f"{name}: frame is {img.shape[1]}x{img.shape[0]}, stream is {info.width}x{info.height}")
-        if info.encoding == "png16":
-            unit = info.depth_unit_m if info.type == "depth" else 1.0
-            return codec.encode_depth_png(img, unit_m=unit, params=params, where=name, error=SessionFormatError), "png"
-        return codec.encode_color(img, encoding=info.encoding, params=params, where=name, error=SessionFormatError)
 
     def _safe_output(self, rel: str) -> Path:
         return safe_join(self.root, rel, source=self.root / MANIFEST, error=SessionFormatError)

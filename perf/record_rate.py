@@ -33,7 +33,7 @@ from capture.drivers import SensorConfig  # noqa: E402
 from capture.drivers.replay import ReplayDriver  # noqa: E402
 from capture.recorder import default_writers, record  # noqa: E402
 from capture.rig import Rig  # noqa: E402
-from capture.session import SessionWriter, open_session  # noqa: E402
+from capture.session import encode_frame, open_session  # noqa: E402
 
 
 def ensure_source(path: Path | None, seconds: float) -> Path:
@@ -69,7 +69,7 @@ def encode_reference(source: Path, *, fast: bool = False, reps: int = 5) -> tupl
             img = s.read_image(sid, name, int(df["frame_number"].iloc[len(df) // 2]))
             t0 = time.perf_counter()
             for _ in range(reps):
-                data, _ext = SessionWriter._encode(img, info, f"{sid}/{name}", fast=fast)
+                data, _ext = encode_frame(img, info, fast=fast)
             dt = (time.perf_counter() - t0) / reps
             per[f"{sid}/{name}"] = (dt, len(data), info.width, info.height)
             total_t += dt

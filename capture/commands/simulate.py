@@ -6,10 +6,14 @@ import argparse
 from capture.sim import EFFECTS, RIGS, SCENES
 
 EPILOG = """effects (--effect NAME=VALUE, repeatable; they act on the LQ sensor unless noted):
-  clock_drift_ppm  [-1000, 1000]  LQ host clock runs fast (+) or slow (-) against HQ
-  depth_scale      [0.5, 2]       LQ depth multiplied by this factor
-  distortion_k1    [-0.5, 0.5]    uncorrected radial lens distortion k1 of the LQ camera
-  frame_drop_rate  [0, 0.9]       probability that any frame of any sensor is dropped
+  clock_drift_ppm       [-1000, 1000]  LQ host clock runs fast (+) or slow (-) against HQ
+  depth_scale           [0.5, 2]       LQ depth multiplied by this factor
+  depth_offset_mm       [-200, 200]    LQ depth offset (after the scale): z' = s z + o
+  distortion_k1         [-0.5, 0.5]    uncorrected radial lens distortion k1 of the LQ camera
+  hq_distortion_k1      [-0.5, 0.5]    radial lens distortion k1 of the HQ colour camera
+  rolling_shutter_ms    [0, 60]        LQ colour camera's rolling-shutter readout time
+  frame_drop_rate       [0, 0.9]       probability that any frame of any sensor is dropped
+  frame_duplicate_rate  [0, 0.5]       probability that an LQ frame repeats its predecessor's image
 Declared effects are written to session.json; with --undeclared only to truth/truth.json.
 
 example:

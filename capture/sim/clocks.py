@@ -12,7 +12,10 @@ with ``period_us = 1e6 / fps``, ``device_rate = 1 + device_drift_ppm * 1e-6``, `
 1 + host_drift_ppm * 1e-6`` and ``host_jitter_us[k]`` uniform in ``[-host_jitter_bound_us,
 +host_jitter_bound_us]`` (recorded per frame in ``truth/<sensor>/frames.csv``). Frames are
 dropped independently with probability ``drop_rate``; a dropped frame keeps its number, so
-the frame numbers that remain have gaps.
+the frame numbers that remain have gaps. A delivered frame (not the first) is, with probability
+``duplicate_rate``, a *duplicate*: it carries the image of the frame delivered before it (same
+content, hence same bytes) under its own number and stamps; its ``scene_time_us`` is then the
+scene time of that content and ``source_frame_number`` names the frame it copies.
 
 Host timestamps are what alignment uses (``time_base: "host"``): the *host* clock of a sensor
 is the clock of the computer that received its frames. The reference sensor (HQ, or ``view0``
@@ -55,6 +58,7 @@ class Clock:
     host_drift_ppm: float
     host_jitter_bound_us: int
     drop_rate: float
+    duplicate_rate: float = 0.0
 
     @property
     def period_us(self) -> float:
@@ -87,7 +91,12 @@ class Clock:
 
 @dataclass(frozen=True)
 class Schedule:
-    """The frames one sensor delivers (dropped ones removed), all arrays ``(N,)`` int64."""
+    """The frames one sensor delivers (dropped ones removed), all arrays ``(N,)`` int64.
+
+    ``scene_time_us`` is the instant whose content the frame carries (for a duplicate, that of
+    the frame it copies; its stamps are those of its own slot); ``source_frame_number`` the frame
+    whose content it is (itself unless duplicated).
+    """
 
     frame_number: np.ndarray
     scene_time_us: np.ndarray
@@ -95,13 +104,21 @@ class Schedule:
     host_timestamp_us: np.ndarray
     host_jitter_us: np.ndarray
     dropped_frame_numbers: np.ndarray
+    source_frame_number: np.ndarray | None = None
+
+    @property
+    def duplicated_frame_numbers(self) -> np.ndarray:
+        if self.source_frame_number is None:
+            return np.zeros(0, np.int64)
+        return self.frame_number[self.source_frame_number != self.frame_number]
 
     def __len__(self) -> int:
         return len(self.frame_number)
 
 
 def frame_schedule(clock: Clock, *, seconds: float, rng: np.random.Generator) -> Schedule:
-    """Every frame whose scene time lies in ``[0, seconds)``; drops and jitter drawn from ``rng``."""
+    """Every frame whose scene time lies in ``[0, seconds)``; drops, jitter and duplicates drawn from ``rng``
+    (duplicates from a generator of their own, so that switching them on changes nothing else)."""
     n = int(np.ceil(seconds * 1e6 * clock.device_rate / clock.period_us)) + 2
     k = np.arange(n)
     t = clock.scene_time_us(k)
@@ -113,18 +130,26 @@ def frame_schedule(clock: Clock, *, seconds: float, rng: np.random.Generator) ->
     jitter = rng.integers(-clock.host_jitter_bound_us, clock.host_jitter_bound_us + 1, len(k)).astype(np.int64)
     fn = clock.first_frame_number + k.astype(np.int64)
     kept = ~drop
-    return Schedule(fn[kept], t[kept], clock.device_timestamp_us(t[kept]),
-                    clock.host_timestamp_us(t[kept], jitter[kept]), jitter[kept], fn[drop])
+    fn_k, t_k = fn[kept], t[kept]
+    source, content_t = fn_k.copy(), t_k.copy()
+    if clock.duplicate_rate > 0 and fn_k.size > 1:
+        dup = np.random.default_rng(rng.integers(0, 2**63)).random(fn_k.size) < clock.duplicate_rate
+        dup[0] = False
+        for i in np.flatnonzero(dup):  # a copy of a copy carries the original's content
+            source[i], content_t[i] = source[i - 1], content_t[i - 1]
+    return Schedule(fn_k, content_t, clock.device_timestamp_us(t_k), clock.host_timestamp_us(t_k, jitter[kept]),
+                    jitter[kept], fn[drop], source)
 
 
 def draw_clocks(sensors: dict[str, float], *, reference: str, target: str | None, rng: np.random.Generator,
                 time_shift_us: int | None = None, drift_ppm: float = 0.0, drop_rate: float = 0.0,
-                jitter_bound_us: int = DEFAULT_JITTER_US) -> dict[str, Clock]:
+                jitter_bound_us: int = DEFAULT_JITTER_US, duplicate_rate: float = 0.0) -> dict[str, Clock]:
     """Draw a clock for each sensor (``{sensor: fps}``).
 
     ``reference`` gets host offset ``t0`` (an epoch-like time) and no host drift; ``target`` (the LQ
     sensor the effects act on) is shifted by ``time_shift_us`` (drawn within +-60 ms if None) and
-    drifts by ``drift_ppm``; other sensors get their own shift within +-60 ms.
+    drifts by ``drift_ppm`` and duplicates frames at ``duplicate_rate``; other sensors get their own
+    shift within +-60 ms.
     """
     t0 = 1_700_000_000_000_000 + int(rng.integers(0, 365 * 86_400 * 10**6))
     clocks = {}
@@ -139,5 +164,5 @@ def draw_clocks(sensors: dict[str, float], *, reference: str, target: str | None
             phase_us=float(rng.uniform(0, 1e6 / fps)), device_offset_us=int(rng.integers(10**6, 10**10)),
             device_drift_ppm=float(np.round(rng.uniform(-20, 20), 3)), host_offset_us=t0 + shift,
             host_drift_ppm=float(drift_ppm) if sid == target else 0.0, host_jitter_bound_us=int(jitter_bound_us),
-            drop_rate=float(drop_rate))
+            drop_rate=float(drop_rate), duplicate_rate=float(duplicate_rate) if sid == target else 0.0)
     return clocks

@@ -16,6 +16,7 @@ from typing import Iterator
 
 import numpy as np
 
+from capture.sim.effects import SensorEffects
 from capture.sim.kernels import depth_counts
 from capture.sim.output import TRUTH_DEPTH_UNIT_M, Plan
 from capture.sim.render import Renderer, camera_rays
@@ -79,12 +80,15 @@ class FrameWorker:
         t_us, order, sid, i = event
         plan = self.plan
         spec = plan.rig.sensor(sid)
-        fn = int(plan.schedules[sid].frame_number[i])
-        scale = plan.effects.get("depth_scale", 1.0) if sid == plan.rig.target else 1.0
+        sched = plan.schedules[sid]
+        fn = int(sched.frame_number[i])
+        # a duplicated frame is rendered exactly as the frame it copies (same instant, same noise)
+        src = int(sched.source_frame_number[i]) if sched.source_frame_number is not None else fn
+        effects = SensorEffects.of(plan.effects) if sid == plan.rig.target else None
         timings = _StageTimings()
         before = dict(self.renderer.stage_s)
-        rng = np.random.default_rng([plan.seed, 3, order, fn])
-        frame = render_frame(spec, self.cams[sid], self.renderer, t_us * 1e-6, rng=rng, depth_scale=scale,
+        rng = np.random.default_rng([plan.seed, 3, order, src])
+        frame = render_frame(spec, self.cams[sid], self.renderer, t_us * 1e-6, rng=rng, effects=effects,
                              timings=timings)
         for stage, s in self.renderer.stage_s.items():
             timings[stage] = s - before[stage]

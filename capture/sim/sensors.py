@@ -11,6 +11,7 @@ from time import perf_counter
 
 import numpy as np
 
+from capture.sim.effects import ROLLING_SHUTTER_BAND_MS, SensorEffects
 from capture.sim.noise import StereoNoise, TofNoise, stereo_depth, tof_depth
 from capture.sim.render import CameraRays, Renderer
 from capture.sim.rigs import SensorSpec
@@ -48,10 +49,13 @@ class Timings(dict):
 
 
 def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s: float, *,
-                 rng: np.random.Generator, depth_scale: float = 1.0, timings: Timings | None = None) -> SensorFrame:
-    """Render sensor ``spec`` at scene time ``t_s`` seconds (``depth_scale`` multiplies its depth).
+                 rng: np.random.Generator, effects: SensorEffects | None = None,
+                 timings: Timings | None = None) -> SensorFrame:
+    """Render sensor ``spec`` at scene time ``t_s`` seconds, with ``effects`` (depth scale and
+    offset, colour rolling shutter; :mod:`capture.sim.effects`) if given.
     ``timings`` gets the seconds spent on noise; the renderer counts its own (``Renderer.stage_s``)."""
     timings = timings if timings is not None else Timings()
+    fx = effects or SensorEffects()
     seeds = rng.integers(0, 2**63, size=2)
     hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)
     with timings("noise"):
@@ -62,8 +66,35 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
         else:
             assert isinstance(spec.noise, TofNoise)
             noisy = tof_depth(hits.z, hits.albedo_luminance, noise=spec.noise, rng=rng)
-        depth = noisy.depth if depth_scale == 1.0 else (noisy.depth * np.float32(depth_scale)).astype(np.float32)
-    color = hits.rgb
-    if cams.color is not None:
-        color = renderer.cast(cams.color, t_s, noise_seed=int(seeds[1]), noise_dn=spec.color_noise_dn).rgb
+        depth = noisy.depth
+        if fx.changes_depth:
+            depth = (depth * np.float32(fx.depth_scale) + np.float32(fx.depth_offset_m)).astype(np.float32)
+    color_cam, seed = (cams.color, int(seeds[1])) if cams.color is not None else (cams.depth, int(seeds[0]))
+    if fx.readout_s > 0:
+        color = rolling_shutter_color(renderer, color_cam, t_s, fx.readout_s, noise_seed=seed,
+                                      noise_dn=spec.color_noise_dn)
+    elif cams.color is not None:
+        color = renderer.cast(cams.color, t_s, noise_seed=seed, noise_dn=spec.color_noise_dn).rgb
+    else:
+        color = hits.rgb
     return SensorFrame(depth, color, hits.z, noisy.invalid)
+
+
+def rolling_shutter_color(renderer: Renderer, cam: CameraRays, t_s: float, readout_s: float, *, noise_seed: int,
+                          noise_dn: float) -> np.ndarray:
+    """A colour image ``(H, W, 3)`` uint8 whose row ``y`` is exposed at ``t_s + readout_s ((y + 0.5) / H - 0.5)``:
+    rendered in bands of rows at most ``ROLLING_SHUTTER_BAND_MS`` apart, each band at its middle
+    row's instant (the same per-pixel sensor noise as a global-shutter cast)."""
+    H = cam.intrinsics.height
+    bands = int(min(H, max(1, np.ceil(readout_s * 1e3 / ROLLING_SHUTTER_BAND_MS))))
+    edges = np.linspace(0, H, bands + 1).round().astype(int)
+    out = None
+    for r0, r1 in zip(edges[:-1], edges[1:]):
+        if r1 <= r0:
+            continue
+        t_band = t_s + readout_s * ((r0 + r1) / 2 / H - 0.5)
+        rgb = renderer.cast(cam, t_band, noise_seed=noise_seed, noise_dn=noise_dn).rgb
+        if out is None:
+            out = np.empty_like(rgb)
+        out[r0:r1] = rgb[r0:r1]
+    return out

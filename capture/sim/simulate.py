@@ -130,7 +130,8 @@ def make_plan(*, rig: str, scene: str, seconds: float, seed: int, effects, undec
     rng = np.random.default_rng([int(seed), 1])
     clocks = draw_clocks({s.id: s.fps for s in built.sensors}, reference=built.reference, target=built.target,
                          rng=rng, time_shift_us=time_shift_us, drift_ppm=effects.get("clock_drift_ppm", 0.0),
-                         drop_rate=effects.get("frame_drop_rate", 0.0))
+                         drop_rate=effects.get("frame_drop_rate", 0.0),
+                         duplicate_rate=effects.get("frame_duplicate_rate", 0.0))
     schedules = {sid: frame_schedule(c, seconds=seconds, rng=np.random.default_rng([int(seed), 2, i]))
                  for i, (sid, c) in enumerate(clocks.items())}
     return Plan(built, scene, int(seed), float(seconds), bool(static), float(scale), effects, not undeclared,
@@ -149,14 +150,25 @@ def _check_options(*, seconds: float, seed: int, time_shift_us, color_encoding: 
 
 
 def _apply_lens_effect(rig: Rig, effects: dict[str, float]) -> Rig:
-    """Render the target camera through radial distortion k1 (depth and co-registered colour)."""
+    """Render the target camera through radial distortion k1 (depth and co-registered colour), and
+    the reference's colour camera through ``hq_distortion_k1``."""
     k1 = effects.get("distortion_k1", 0.0)
-    if not k1:
-        return rig
-    spec = rig.sensor(rig.target)
-    d = spec.depth
-    K = Intrinsics(d.width, d.height, d.fx, d.fy, d.cx, d.cy, "opencv", (k1, 0.0, 0.0, 0.0, 0.0))
-    return rig.with_sensor(replace(spec, depth=K, color=K))
+    if k1:
+        spec = rig.sensor(rig.target)
+        K = _with_k1(spec.depth, k1)
+        rig = rig.with_sensor(replace(spec, depth=K, color=K if spec.color == spec.depth else _with_k1(spec.color, k1)))
+    k1 = effects.get("hq_distortion_k1", 0.0)
+    if k1:
+        spec = rig.sensor(rig.reference)
+        if spec.color_is_depth:
+            raise SimulationError(f"--effect hq_distortion_k1: the reference sensor {spec.id!r} has no separate colour "
+                                  "camera")
+        rig = rig.with_sensor(replace(spec, color=_with_k1(spec.color, k1)))
+    return rig
+
+
+def _with_k1(d: Intrinsics, k1: float) -> Intrinsics:
+    return Intrinsics(d.width, d.height, d.fx, d.fy, d.cx, d.cy, "opencv", (k1, 0.0, 0.0, 0.0, 0.0))
 
 
 # ----------------------------------------------------------------------------- rendering

@@ -90,6 +90,8 @@ class AlignOptions:
     dejitter: bool = True
     board: str | None = None
     board_frames: int = 30
+    loop: bool = True
+    loop_correct_depth: bool = True
 
     def check(self) -> None:
         if self.board is not None:
@@ -320,6 +322,7 @@ class PairFit:
     candidates: int
     seconds: float
     board: dict | None = None  # ChArUco calibration summary when T_lq_hq came from a board
+    loop: object | None = None  # align.loop.run.LoopResult when the effect loop ran
 
     def time_shift_at(self, t_hq_us) -> np.ndarray:
         return self.shift.shift_at(t_hq_us)
@@ -435,6 +438,9 @@ def pair_frames(setup: PairSetup, pf: PairFit, opts: AlignOptions) -> PairTable:
     dt = np.zeros(setup.t_hq.size, np.int64)
     lq_of[a.hq_index], dt[a.hq_index] = a.lq_index, a.dt_us
     reason = ["" if lq_of[i] >= 0 else f"no LQ frame within {max_dt / 1000:g} ms" for i in range(setup.t_hq.size)]
+    dup = set() if pf.loop is None else set(int(j) for j in pf.loop.lq_duplicates)
+    for i in np.flatnonzero(np.isin(lq_of, list(dup))) if dup else ():
+        reason[i] = "LQ frame duplicates its predecessor (its content is of an earlier instant)"
     # eq. 28 may give one LQ frame to two HQ frames: keep the nearer in time
     best: dict[int, int] = {}
     for i in np.flatnonzero(lq_of >= 0):
@@ -500,7 +506,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
                   leave=False):
         i, j = int(table.hq_index[k]), int(table.lq_index[k])
         ref = warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
-        lq = sess.read_depth(setup.lq, int(setup.f_lq[j]), stream=setup.lq_depth)
+        lq = _lq_depth(sess, setup, pf, j)
         table.residual[k], n = depth_residual(lq, ref)
         if n < 100:
             table.reason[k] = "too few pixels with both depths"
@@ -525,7 +531,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
             i, j = int(table.hq_index[k]), int(table.lq_index[k])
             fl = int(setup.f_lq[j])
             ref = warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
-            lq = sess.read_depth(setup.lq, fl, stream=setup.lq_depth)
+            lq = _lq_depth(sess, setup, pf, j)
             color = _lq_color(sess, setup, fl, lq, color_registered, lq_color_T)
             roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), background) if background is not None else None
             tr = truth.depth(fl) if truth is not None else None
@@ -547,6 +553,11 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     if report is not None:
         report = Path(root) / "report.md"
     return PairOutput(Path(root), table, meta["residuals"]["depth"], report, int(kept.size), example)
+
+
+def _lq_depth(sess, setup: PairSetup, pf: PairFit, j: int) -> np.ndarray:
+    lq = sess.read_depth(setup.lq, int(setup.f_lq[j]), stream=setup.lq_depth)
+    return lq if pf.loop is None else pf.loop.correct_lq_depth(lq)
 
 
 def _lq_color(sess, setup: PairSetup, frame: int, lq_depth, registered: bool, T_color_depth: Transform):
@@ -584,7 +595,8 @@ def _metadata(setup: PairSetup, pf: PairFit, table: PairTable, opts: AlignOption
             "time": {**robust_summary(np.abs(dt_kept)), "unit": "us, |t_LQ - (t_HQ + Delta)| of kept pairs"},
             "pairs": {"candidates": int(table.hq_index.size), "kept": int(kept.sum()), "dropped": table.counts()},
         },
-        "effects": [],
+        "effects": [] if pf.loop is None else pf.loop.effects_json(),
+        **({} if pf.loop is None else {"loop": pf.loop.summary_json()}),
         "alignment": {"program": "depthbench align", "options": {k: v for k, v in opts.__dict__.items()},
                       "probes": len(pf.probes), "probe_candidates": pf.candidates, "fit_seconds": pf.seconds},
     }
@@ -654,6 +666,10 @@ def align_session(session, out, *, force: bool = False, lq: str | None = None, h
     hq = hq or _only(sess, "hq")
     setup = pair_setup(sess, lq=lq, hq=hq, dejitter=opts.dejitter)
     pf = fit_pair(setup, opts)
+    if opts.loop:
+        from align.loop.run import close_loop
+
+        close_loop(setup, pf, correct_depth=opts.loop_correct_depth).apply(pf)
     truth = TruthSource(sess.root, lq) if opts.attach_truth and TruthSource.available(sess.root) else None
     po = write_pair_dataset(out, setup, pf, opts, force=force, truth=truth)
     return AlignmentResult(out, int(round(pf.shift.time_shift_us)), pf.T_lq_hq, pf.shift, pf.fit, po.kept,

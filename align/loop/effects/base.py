@@ -1,0 +1,41 @@
+"""The interface of a feature effect (see :mod:`align.loop.effects`): every hook neutral by default."""
+from __future__ import annotations
+
+import numpy as np
+
+from capture.camera import Intrinsics
+
+
+class Effect:
+    """One effect model: ``name``, ``params`` (names), ``units``, ``steps`` (finite differences),
+    ``requires`` (an effect that must be in the model first), ``declared_as`` (the session
+    ``effects`` keys that declare it), ``signature`` (the residual covariate it shows against),
+    ``what`` (one line for reports)."""
+
+    name: str = ""
+    params: tuple[str, ...] = ()
+    units: tuple[str, ...] = ()
+    steps: tuple[float, ...] = ()
+    requires: str | None = None
+    declared_as: tuple[str, ...] = ()
+    signature: str = ""
+    what: str = ""
+
+    def time_offset_us(self, data, v: np.ndarray):
+        return 0.0
+
+    def sample_offset_us(self, data, stamps: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return stamps
+
+    def lq_camera(self, K: Intrinsics, v: np.ndarray) -> Intrinsics:
+        return K
+
+    def correct_points(self, data, X: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return X
+
+    def declared_values(self, declared: dict) -> np.ndarray | None:
+        """The parameter values a session's declared ``effects`` give this effect (None: not declared)."""
+        return None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name})"

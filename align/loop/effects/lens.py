@@ -1,0 +1,60 @@
+"""Brown-Conrady (radial-tangential, OpenCV order ``k1, k2, p1, p2``) lens distortion of a colour camera,
+added to the declared coefficients.
+
+Enabled in stages (``k1``, then ``k2``, then ``p1, p2``), each stage an effect of its own. LQ
+camera: the HQ points are projected through the distortion. HQ camera: each HQ keypoint's ray
+is undistorted before it is lifted (its depth, sampled at the keypoint, is kept). Signature:
+feature residual growing with the radius from the principal point.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from align.loop.effects.base import Effect
+from capture.camera import Intrinsics
+
+_INDEX = {"k1": 0, "k2": 1, "p1": 2, "p2": 3}
+
+
+def add_coeffs(K: Intrinsics, delta: dict[str, float]) -> Intrinsics:
+    """``K`` with ``delta`` (``{"k1": ..}``) added to its OpenCV coefficients."""
+    c = np.zeros(max(5, len(K.coeffs)))
+    c[: len(K.coeffs)] = K.coeffs
+    for k, v in delta.items():
+        c[_INDEX[k]] += v
+    if not np.any(c):
+        return K.without_distortion()
+    return Intrinsics(K.width, K.height, K.fx, K.fy, K.cx, K.cy, "opencv", tuple(float(x) for x in c))
+
+
+class LensDistortion(Effect):
+    units = ()
+    signature = "radius"
+
+    def __init__(self, camera: str, coeffs: tuple[str, ...], *, requires: str | None = None) -> None:
+        self.camera, self.params, self.requires = camera, tuple(coeffs), requires
+        self.name = f"lens_{camera}_{'p' if coeffs[0].startswith('p') else coeffs[0]}"
+        self.units = ("1",) * len(coeffs)
+        self.steps = tuple(1e-4 if c.startswith("k") else 1e-5 for c in coeffs)
+        self.declared_as = ("distortion_k1",) if (camera, coeffs) == ("lq", ("k1",)) else \
+            ("hq_distortion_k1",) if (camera, coeffs) == ("hq", ("k1",)) else ()
+        self.what = f"{camera.upper()} colour lens distortion {', '.join(coeffs)} (Brown-Conrady)"
+
+    def lq_camera(self, K: Intrinsics, v: np.ndarray) -> Intrinsics:
+        if self.camera != "lq" or not np.any(v):
+            return K
+        return add_coeffs(K, dict(zip(self.params, v)))
+
+    def correct_points(self, data, X: np.ndarray, v: np.ndarray) -> np.ndarray:
+        if self.camera != "hq" or not np.any(v):
+            return X
+        Xc = data.T_hqcolor_hqdepth.apply(X)
+        z = Xc[:, 2]
+        K = data.K_hq
+        n = np.stack([(data.hq_xy[:, 0] - K.cx) / K.fx, (data.hq_xy[:, 1] - K.cy) / K.fy], axis=1)
+        Kd = add_coeffs(K.without_distortion(), dict(zip(self.params, v)))
+        n_true = Kd.undistort(n, iterations=5)
+        return data.T_hqcolor_hqdepth.inverse().apply(np.concatenate([n_true * z[:, None], z[:, None]], axis=1))
+
+    def declared_values(self, declared: dict) -> np.ndarray | None:
+        return None  # a declared lens is in the session's intrinsics already: nothing is added

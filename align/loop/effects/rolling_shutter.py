@@ -1,0 +1,42 @@
+"""Rolling shutter of a colour camera: row ``y`` of an ``H``-row image is exposed at
+``t + r ((y + 0.5) / H - 0.5)`` (``r`` the readout time; the stamp is the middle of the readout).
+
+LQ camera: each track sample's instant moves by its row's offset (the interpolation then reads
+the track at the right place). HQ camera: each feature's instant moves by its HQ row's offset.
+Signature: feature residual proportional to image velocity x image row. Colour sensors read
+out in 10-30 ms.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from align.loop.effects.base import Effect
+
+
+class RollingShutter(Effect):
+    params = ("readout_ms",)
+    units = ("ms",)
+    steps = (0.05,)
+    signature = "velocity_x_row"
+
+    def __init__(self, camera: str) -> None:
+        self.camera = camera
+        self.name = f"rolling_shutter_{camera}"
+        self.declared_as = ("rolling_shutter_ms",) if camera == "lq" else ("hq_rolling_shutter_ms",)
+        self.what = f"the {camera.upper()} colour camera exposes its rows one after another (readout time r)"
+
+    def time_offset_us(self, data, v: np.ndarray):
+        if self.camera != "hq":
+            return 0.0
+        return v[0] * 1e3 * ((data.hq_xy[:, 1] + 0.5) / data.K_hq.height - 0.5)
+
+    def sample_offset_us(self, data, stamps: np.ndarray, v: np.ndarray) -> np.ndarray:
+        if self.camera != "lq":
+            return stamps
+        y = data.tracks[..., 1]
+        off = np.where(np.isfinite(y), v[0] * 1e3 * ((y + 0.5) / data.K_lq.height - 0.5), 0.0)
+        return stamps + off
+
+    def declared_values(self, declared: dict) -> np.ndarray | None:
+        r = declared.get(self.declared_as[0])
+        return None if r is None else np.array([float(r)])

@@ -1,0 +1,415 @@
+"""The greedy search over the effect library (issue 12, items 2-3). Pure numpy/scipy, no I/O.
+
+Feature phase (:func:`fit_feature_effects`): every library effect is in the
+:class:`~align.loop.features.FeatureModel` from the start at its neutral value; declared
+effects are fixed at their declared values. The base model (pose and shift, plus what is
+already accepted) is refitted non-linearly (robust Cauchy least squares), linearised (one
+Jacobian column per parameter of the library), and every candidate effect (those whose
+``requires`` is in the model) is compared on held-out probes (:mod:`align.loop.selection`).
+Among the candidates above the threshold, with a falling BIC and a held-out improvement above
+``min_improvement``, the one with the lowest BIC is accepted (:func:`choose`; look-alikes within
+:data:`LOOK_ALIKE_BIC` are named with it) and the loop repeats; it stops when none is. The threshold
+comes once, at the first stage, from the parametric bootstrap.
+
+Depth phase (:func:`fit_depth_effects`): the same on the sampled depth pixels, with scale and
+offset as candidates (linear: no re-linearisation needed).
+
+Parameter uncertainty: a cluster-robust (sandwich) covariance with probes / frame pairs as
+clusters (features of one probe share errors), 95 % intervals at +-1.96 sigma.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from align.loop.effects import feature_effects
+from align.loop.effects.depth import DepthData, depth_effects
+from align.loop.features import FeatureData, FeatureModel, interpolate_tracks
+from align.loop.selection import (Comparison, HeldOut, LinearProblem, compare, folds_of, full_fit, null_threshold,
+                                  weights)
+from align.loop.stratify import Signature, depth_signatures, feature_signatures
+from capture.camera import Transform
+
+
+@dataclass(frozen=True)
+class LoopOptions:
+    """folds/gap: held-out blocks of probes (pairs) and the groups left out on each side. alpha: false-alarm
+    rate per stage of the bootstrap threshold; z_floor: the threshold's lowest value; replicates: bootstrap
+    draws. min_improvement: smallest relative held-out loss drop accepted. scale_px, depth_scale_rel:
+    Cauchy scales (None: 2.5 robust sigmas of the base fit's residual). max_stages: effects accepted at most."""
+
+    folds: int = 5
+    gap: int = 1
+    alpha: float = 0.01
+    z_floor: float = 3.0
+    replicates: int = 100
+    min_improvement: float = 0.001
+    scale_px: float | None = None
+    depth_scale_rel: float | None = None
+    max_stages: int = 6
+    max_nfev: int = 30
+    seed: int = 0
+
+
+@dataclass
+class Finding:
+    """An effect in the final model: declared (applied as declared) or found by the search."""
+
+    name: str
+    phase: str  # "features", "depth" or "frames"
+    params: dict
+    std: dict
+    units: dict
+    source: str  # "declared" or "found"
+    what: str
+    signature: str = ""
+    comparison: Comparison | None = None
+    stage: int = 0
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d = {"name": self.name, "phase": self.phase, "source": self.source, "what": self.what,
+             "params": {k: float(v) for k, v in self.params.items()},
+             "std": {k: (float(v) if np.isfinite(v) else None) for k, v in self.std.items()},
+             "interval95": {k: [float(self.params[k] - 1.96 * self.std[k]), float(self.params[k] + 1.96 * self.std[k])]
+                            for k in self.params if k in self.std and np.isfinite(self.std[k])},
+             "units": dict(self.units), "signature": self.signature, "stage": self.stage}
+        if self.comparison is not None:
+            d.update(self.comparison.to_dict())
+        d.update(self.extra)
+        return d
+
+
+@dataclass
+class StageRecord:
+    """One stage of the greedy search: every candidate's comparison and what was accepted."""
+
+    stage: int
+    candidates: dict[str, Comparison]
+    accepted: str | None
+
+
+@dataclass
+class FeatureLoop:
+    """Result of :func:`fit_feature_effects`."""
+
+    model: FeatureModel
+    x: np.ndarray
+    x_base: np.ndarray
+    free: list[str]
+    cov: np.ndarray
+    findings: list[Finding]
+    stages: list[StageRecord]
+    threshold: float
+    null_z: np.ndarray
+    scale_px: float
+    before: list[Signature]
+    after: list[Signature]
+    heldout_before: dict
+    heldout_after: dict
+    seconds: dict
+
+    @property
+    def T(self) -> Transform:
+        return self.model.pose(self.x)
+
+    @property
+    def shift_us(self) -> float:
+        return float(self.x[6] * 1000.0)
+
+    def value(self, effect: str) -> np.ndarray:
+        return self.x[self.model.layout[effect]]
+
+    @property
+    def drift_ppm(self) -> float:
+        return float(self.value("clock_drift")[0])
+
+    def lq_coeff_delta(self) -> dict[str, float]:
+        out = {}
+        for e in self.model.effects:
+            if e.name.startswith("lens_lq"):
+                out.update({p: float(v) for p, v in zip(e.params, self.value(e.name))})
+        return {k: v for k, v in out.items() if v}
+
+    def accepted(self) -> list[str]:
+        return [f.name for f in self.findings if f.source == "found"]
+
+
+#: candidates whose BIC lies within this of the best one are look-alikes the data cannot tell apart
+LOOK_ALIKE_BIC = 10.0
+
+
+def choose(comps: dict[str, Comparison], order: list[str], *, threshold: float, min_improvement: float
+           ) -> tuple[str | None, list[str]]:
+    """The candidate to accept, and its look-alikes.
+
+    Candidates must pass the held-out test (``z`` above the threshold, relative improvement above
+    ``min_improvement``) and the BIC guard (it falls). Among those the lowest BIC wins; candidates
+    within :data:`LOOK_ALIKE_BIC` of it are look-alikes (reported with the finding), and among
+    look-alikes the library's order decides (the LQ camera before the HQ camera).
+    """
+    ok = [n for n in order if comps[n].z > threshold and comps[n].delta_bic < 0 and comps[n].improvement > min_improvement]
+    if not ok:
+        return None, []
+    lowest = min(comps[n].delta_bic for n in ok)
+    alike = [n for n in ok if comps[n].delta_bic <= lowest + LOOK_ALIKE_BIC]
+    best = alike[0]
+    return best, [n for n in alike if n != best]
+
+
+def _cols(model: FeatureModel, effects: list[str], base: bool = True) -> np.ndarray:
+    idx = list(range(7)) if base else []
+    for name in effects:
+        sl = model.layout[name]
+        idx += list(range(sl.start, sl.stop))
+    return np.asarray(idx, np.int64)
+
+
+def refit(model: FeatureModel, x: np.ndarray, free: np.ndarray, *, c: float, max_nfev: int = 30) -> np.ndarray:
+    """Robust non-linear least squares of the ``free`` parameters from ``x`` (Cauchy, scale ``c`` px)."""
+    def f(z):
+        xx = x.copy()
+        xx[free] = z
+        return model.residuals(xx)
+
+    def jac(z):
+        xx = x.copy()
+        xx[free] = z
+        return model.jacobian(xx, columns=free)
+
+    res = least_squares(f, x[free], jac=jac, loss="cauchy", f_scale=c, x_scale="jac", max_nfev=max_nfev)
+    out = x.copy()
+    out[free] = res.x
+    return out
+
+
+def sandwich(J: np.ndarray, r: np.ndarray, group: np.ndarray, c: float) -> np.ndarray:
+    """Cluster-robust covariance ``A^-1 B A^-1`` of an IRLS fit (clusters = ``group``)."""
+    w = weights(r, c)
+    A = (J * w[:, None]).T @ J
+    s = J * (w * r)[:, None]
+    starts = np.searchsorted(group, np.unique(group))
+    S = np.add.reduceat(s, starts, axis=0)
+    G = S.shape[0]
+    B = S.T @ S * (G / max(G - 1, 1))
+    try:
+        Ai = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return np.full(A.shape, np.nan)
+    return Ai @ B @ Ai
+
+
+def _heldout_summary(h: HeldOut, cols: np.ndarray) -> tuple[dict, np.ndarray]:
+    p = h.p
+    rows = np.zeros_like(p.r0)
+    loss = h.losses(cols, rows_out=rows)
+    used = p.r0 != 0
+    a = np.abs(rows[used])
+    return {"loss_per_row": float(loss.sum() / max(p.r0.size, 1)), "median_abs": float(np.median(a)) if a.size else 0.0,
+            "rms_trimmed": float(np.sqrt(np.mean(np.sort(a)[: int(0.95 * a.size)] ** 2))) if a.size else 0.0}, loss
+
+
+def _instants(model: FeatureModel, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each feature's instant in its window and the sample stamps, under parameters ``x``."""
+    d = model.data
+    s = np.full(len(d), x[6] * 1000.0)
+    stamps = d.rel_us
+    for e in model.effects:
+        v = x[model.layout[e.name]]
+        s = s + e.time_offset_us(d, v)
+        stamps = e.sample_offset_us(d, stamps, v)
+    return s, stamps
+
+
+def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, declared: dict | None = None,
+                        options: LoopOptions | None = None, exclude: tuple[str, ...] = ()) -> FeatureLoop:
+    """The feature phase of the loop (module docstring). ``declared``: the session's ``effects``
+    (e.g. ``{"clock_drift_ppm": 75}``); ``exclude``: library effects not to search."""
+    o = options or LoopOptions()
+    t_start = time.perf_counter()
+    secs: dict[str, float] = {}
+    lib = [e for e in feature_effects() if e.name not in exclude]
+    if data.K_hq.has_distortion:
+        lib = [e for e in lib if not e.name.startswith("lens_hq")]
+    model = FeatureModel(data, lib)
+    values, fixed = {}, []
+    for e in lib:
+        v = e.declared_values(declared or {})
+        if v is not None:
+            values[e.name] = v
+            fixed.append(e)
+    x = model.x0(T, shift_us, values)
+    accepted: list[str] = []
+    group = np.repeat(data.probe, 2)
+    folds = folds_of(data.n_probes, folds=o.folds, gap=o.gap)
+    # base fit; the robust scale from its residuals
+    c = o.scale_px or 1.5
+    x = refit(model, x, _cols(model, []), c=c, max_nfev=o.max_nfev)
+    if o.scale_px is None:
+        r = model.residuals(x)
+        c = float(max(0.3, 2.5 * 1.4826 * np.median(np.abs(r[r != 0]))))
+    x_base = x.copy()
+    secs["base_fit"] = time.perf_counter() - t_start
+    stages: list[StageRecord] = []
+    threshold, null_z = None, np.zeros(0)
+    findings: list[Finding] = []
+    before_summary = None
+    for stage in range(1, o.max_stages + 1):
+        t0 = time.perf_counter()
+        r0, J = model.residuals(x), model.jacobian(x)
+        p = LinearProblem(r0, J, group, c, model.names())
+        base = _cols(model, accepted)
+        cands = [e for e in lib if e not in fixed and e.name not in accepted
+                 and (e.requires is None or e.requires in accepted)]
+        cand_cols = [_cols(model, [e.name], base=False) for e in cands]
+        h = HeldOut(p, np.concatenate([base] + cand_cols), folds)
+        if before_summary is None:
+            before_summary, _ = _heldout_summary(h, base)
+        if not cands:
+            break
+        if threshold is None:
+            threshold, null_z = null_threshold(p, base, cand_cols, folds, replicates=o.replicates, alpha=o.alpha,
+                                               z_floor=o.z_floor, seed=o.seed)
+            secs["bootstrap"] = time.perf_counter() - t0
+        lb = h.losses(base)
+        bb = h.bic(base)
+        comps = {e.name: compare(h, base, cc, base_loss=lb, base_bic=bb) for e, cc in zip(cands, cand_cols)}
+        best, alike = choose(comps, [e.name for e in cands], threshold=threshold, min_improvement=o.min_improvement)
+        stages.append(StageRecord(stage, comps, best))
+        secs[f"stage{stage}"] = time.perf_counter() - t0
+        if best is None:
+            break
+        accepted.append(best)
+        e = next(e for e in lib if e.name == best)
+        findings.append(Finding(best, "features", {}, {}, dict(zip(e.params, e.units)), "found", e.what,
+                                e.signature, comps[best], stage, extra={"look_alikes": alike} if alike else {}))
+        x = refit(model, x, _cols(model, accepted), c=c, max_nfev=o.max_nfev)
+    # final: covariance, held-out error and signatures
+    t0 = time.perf_counter()
+    free = _cols(model, accepted)
+    r0, Jf = model.residuals(x), model.jacobian(x, columns=free)
+    cov = sandwich(Jf, r0, group, c)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    pos_of = {int(i): k for k, i in enumerate(free)}
+    for f in findings:
+        e = next(e for e in lib if e.name == f.name)
+        sl = model.layout[e.name]
+        f.params = {pname: float(x[i]) for pname, i in zip(e.params, range(sl.start, sl.stop))}
+        f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, range(sl.start, sl.stop))}
+    for e in fixed:
+        sl = model.layout[e.name]
+        findings.insert(0, Finding(e.name, "features", dict(zip(e.params, x[sl])), dict(zip(e.params, [0.0] * len(e.params))),
+                                   dict(zip(e.params, e.units)), "declared", e.what, e.signature))
+    p = LinearProblem(r0, model.jacobian(x, columns=free), group, c, [model.names()[i] for i in free])
+    after_summary, _ = _heldout_summary(HeldOut(p, np.arange(free.size), folds), np.arange(free.size))
+    s_b, st_b = _instants(model, x_base)
+    s_a, st_a = _instants(model, x)
+    before = feature_signatures(data, model.residuals(x_base), shift_us=s_b, stamps=st_b)
+    after = feature_signatures(data, r0, shift_us=s_a, stamps=st_a)
+    secs["final"] = time.perf_counter() - t0
+    secs["total"] = time.perf_counter() - t_start
+    names = model.names()
+    return FeatureLoop(model, x, x_base, [names[i] for i in free], cov, findings, stages, float(threshold or o.z_floor),
+                       null_z, c, before, after, before_summary or {}, after_summary, secs)
+
+
+# ----------------------------------------------------------------------------------- depth phase
+@dataclass
+class DepthLoop:
+    """Result of :func:`fit_depth_effects`: ``scale``, ``offset_m`` of ``z_LQ = s z_HQ + o``."""
+
+    scale: float
+    offset_m: float
+    findings: list[Finding]
+    stages: list[StageRecord]
+    threshold: float
+    before: list[Signature]
+    after: list[Signature]
+    heldout_before: dict
+    heldout_after: dict
+    c: float
+
+    def correct(self, z_lq: np.ndarray) -> np.ndarray:
+        """LQ depth expressed on the HQ's scale: ``(z - o) / s``."""
+        if self.scale == 1.0 and self.offset_m == 0.0:
+            return z_lq
+        return ((z_lq - np.float32(self.offset_m)) / np.float32(self.scale)).astype(np.float32)
+
+
+def fit_depth_effects(data: DepthData, *, declared: dict | None = None, options: LoopOptions | None = None,
+                      pair_interval=None, pair_residual=None) -> DepthLoop:
+    """The depth phase of the loop (module docstring)."""
+    o = options or LoopOptions()
+    declared = declared or {}
+    s_decl = float(declared.get("depth_scale", 1.0))
+    o_decl = float(declared.get("depth_offset_mm", 0.0)) * 1e-3
+    r0 = data.residual(s_decl, o_decl)
+    c = o.depth_scale_rel or float(max(1e-3, 2.5 * 1.4826 * np.median(np.abs(r0 - np.median(r0)))))
+    lib = [e for e in depth_effects() if e.declared_as not in declared]
+    fixed = [e for e in depth_effects() if e.declared_as in declared]
+    # the Jacobian of (s - 1, o) relative to the declared values is exact: r = r0 - ds - do / z
+    J = np.stack([e.column(data) for e in lib], axis=1) if lib else np.zeros((len(data), 0))
+    p = LinearProblem(r0, J, data.pair, c, [e.name for e in lib])
+    folds = folds_of(p.n_groups, folds=o.folds, gap=o.gap)
+    accepted: list[int] = []
+    stages: list[StageRecord] = []
+    findings: list[Finding] = []
+    empty = np.zeros(0, np.int64)
+    h = HeldOut(p, np.arange(len(lib)), folds)
+    before_summary, _ = _heldout_summary(h, empty)
+    threshold = None
+    for stage in range(1, len(lib) + 1):
+        base = np.asarray(accepted, np.int64)
+        cands = [i for i in range(len(lib)) if i not in accepted]
+        if not cands:
+            break
+        if threshold is None:
+            threshold, _ = null_threshold(p, base, [np.array([i]) for i in cands], folds, replicates=o.replicates,
+                                          alpha=o.alpha, z_floor=o.z_floor, seed=o.seed, parity=1)
+        lb, bb = h.losses(base), h.bic(base)
+        comps = {lib[i].name: compare(h, base, np.array([i]), base_loss=lb, base_bic=bb) for i in cands}
+        name, alike = choose(comps, [lib[i].name for i in cands], threshold=threshold,
+                             min_improvement=o.min_improvement)
+        stages.append(StageRecord(stage, comps, name))
+        if name is None:
+            break
+        best = next(i for i in cands if lib[i].name == name)
+        accepted.append(best)
+        e = lib[best]
+        findings.append(Finding(e.name, "depth", {}, {}, {e.param: e.unit}, "found", e.what, e.signature,
+                                comps[e.name], stage, extra={"look_alikes": alike} if alike else {}))
+    cols = np.asarray(accepted, np.int64)
+    delta, r_fit = full_fit(p, cols) if cols.size else (np.zeros(0), r0)
+    cov = sandwich(J[:, cols], r_fit, data.pair, c) if cols.size else np.zeros((0, 0))
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    scale, offset = s_decl, o_decl
+    for k, i in enumerate(accepted):
+        e = lib[i]
+        f = next(f for f in findings if f.name == e.name)
+        if e.param == "s_minus_1":
+            scale = s_decl + delta[k]
+            f.params, f.std = {"scale": scale}, {"scale": float(sd[k])}
+            f.units = {"scale": "1"}
+        else:
+            offset = o_decl + delta[k]
+            f.params, f.std = {"offset_mm": offset * 1e3}, {"offset_mm": float(sd[k]) * 1e3}
+            f.units = {"offset_mm": "mm"}
+    for e in fixed:
+        val = {"scale": s_decl} if e.param == "s_minus_1" else {"offset_mm": o_decl * 1e3}
+        findings.insert(0, Finding(e.name, "depth", val, {k: 0.0 for k in val}, {k: ("1" if k == "scale" else "mm")
+                                                                                 for k in val}, "declared", e.what,
+                                   e.signature))
+    after_summary, _ = _heldout_summary(h, cols)
+    before = depth_signatures(data, data.residual(s_decl, o_decl), pair_interval=pair_interval,
+                              pair_residual=pair_residual)
+    after = depth_signatures(data, data.residual(scale, offset), pair_interval=pair_interval,
+                             pair_residual=pair_residual)
+    return DepthLoop(float(scale), float(offset), findings, stages, float(threshold or o.z_floor), before, after,
+                     before_summary, after_summary, c)
+
+
+__all__ = ["DepthLoop", "FeatureLoop", "Finding", "LoopOptions", "StageRecord", "fit_depth_effects",
+           "fit_feature_effects", "interpolate_tracks", "refit", "sandwich"]

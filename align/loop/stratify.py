@@ -90,28 +90,31 @@ def signature(name: str, x, y, *, covariate: str, response: str, points_to: str 
     if x.size < 2 * bins:
         e = np.zeros(0)
         return Signature(name, covariate, response, e, e, e, e.astype(int), 0.0, 0.0, 1.0, points_to)
-    # trim the response's far tails (mismatches) so that the means are robust
-    lo, hi = np.percentile(y, [2, 98])
-    keep = (y >= lo) & (y <= hi)
-    x, y = x[keep], y[keep]
-    g = None if g is None else g[keep]
     edges = np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
     idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, max(edges.size - 2, 0))
-    centers, means, sems, counts = [], [], [], []
+    centers, means, sems, counts, units = [], [], [], [], []
     for b in range(edges.size - 1):
         sel = idx == b
         if sel.sum() < 3:
             continue
         yb = y[sel]
+        lo, hi = np.percentile(yb, [5, 95])  # trim each bin's far tails (mismatches): robust means
+        inner = (yb >= lo) & (yb <= hi)
+        yb = yb[inner]
         if g is not None:  # one value per group: the group means
-            gb = g[sel]
+            gb = g[sel][inner]
             u, inv = np.unique(gb, return_inverse=True)
             yb = np.bincount(inv, yb) / np.bincount(inv)
-        sem = float(np.std(yb, ddof=1) / np.sqrt(yb.size)) if yb.size > 1 else float("inf")
         centers.append(float(np.median(x[sel])))
         means.append(float(np.mean(yb)))
-        sems.append(sem if sem > 0 else float("inf"))
+        units.append(yb - np.mean(yb))
         counts.append(int(sel.sum()))
+    # standard errors from the pooled scatter of the units (values or group means) around their bin
+    # means: a bin holding a few groups only (time bins of a few probes) gets no lucky tiny error
+    dev = np.concatenate(units) if units else np.zeros(0)
+    dof = dev.size - len(units)
+    sd = float(np.sqrt(np.sum(dev ** 2) / dof)) if dof > 0 else float("inf")
+    sems = [sd / np.sqrt(u.size) if sd > 0 else float("inf") for u in units]
     c, m, s = np.array(centers), np.array(means), np.array(sems)
     slope, slope_se, p = _slope(c, m, s)
     lm, lse = _level(y, g)

@@ -58,7 +58,7 @@ EFFECTS: dict[str, tuple[float, float, float]] = {
 }
 
 #: largest time step between the row bands of a rolling-shutter image (ms)
-ROLLING_SHUTTER_BAND_MS = 1.0
+ROLLING_SHUTTER_BAND_MS = 2.0
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,159 @@
+"""The effect loop (align.loop) on synthetic probes and depth samples whose effects are set by formula
+(tests/align/loop_synth.py), not by the fit: names the effect, interval covers the truth, held-out
+error back to that of the clean data, and nothing added to clean data."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from align.loop.effects.depth import DepthData
+from align.loop.effects.frames import drop_interval, duplicated
+from align.loop.loop import LoopOptions, fit_depth_effects, fit_feature_effects
+from align.loop.selection import HeldOut, LinearProblem, compare, folds_of, null_threshold
+from align.loop.stratify import signature
+from tests.align.loop_synth import feature_data, start
+
+SMALL = dict(seconds=8.0, probes=16, n=110)
+OPTS = LoopOptions(replicates=20)
+
+
+def _loop(seed=3, **effects):
+    fd, truth = feature_data(seed=seed, **SMALL, **effects)
+    T, a = start(truth)
+    return fit_feature_effects(fd, T=T, shift_us=a, options=OPTS), truth
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return _loop()
+
+
+def test_clean_probes_add_nothing(clean):
+    loop, _ = clean
+    assert loop.accepted() == []
+    assert loop.stages and loop.stages[0].accepted is None
+    assert loop.threshold >= OPTS.z_floor
+
+
+@pytest.mark.parametrize("effect, size, name, param", [
+    ("drift_ppm", 1500.0, "clock_drift", "b_ppm"),
+    ("readout_ms", 25.0, "rolling_shutter_lq", "readout_ms"),
+    ("k1", 0.08, "lens_lq_k1", "k1"),
+    ("hq_k1", 0.08, "lens_hq_k1", "k1"),
+])
+def test_large_effect_is_named_and_measured(clean, effect, size, name, param):
+    loop, truth = _loop(**{effect: size})
+    assert loop.accepted() == [name], [(s.stage, {n: round(c.z, 1) for n, c in s.candidates.items()}) for s in loop.stages]
+    f = next(f for f in loop.findings if f.name == name)
+    value, sd = f.params[param], f.std[param]
+    assert abs(value - size) <= 0.1 * size, (value, size)
+    assert abs(value - size) <= 1.96 * sd, (value, sd, size)
+    # held-out error after: within 20 % of the same scene without the effect
+    base = clean[0].heldout_after["median_abs"]
+    assert loop.heldout_after["median_abs"] <= 1.2 * base, (loop.heldout_after, base)
+    assert loop.heldout_before["median_abs"] > loop.heldout_after["median_abs"]
+
+
+def test_two_undeclared_effects_are_both_found():
+    loop, truth = _loop(drift_ppm=1500.0, k1=0.08)
+    assert set(loop.accepted()) == {"clock_drift", "lens_lq_k1"}
+    assert abs(loop.drift_ppm - 1500.0) < 150.0
+    assert abs(loop.value("lens_lq_k1")[0] - 0.08) < 0.008
+
+
+def test_declared_drift_is_applied_not_searched():
+    fd, truth = feature_data(seed=3, drift_ppm=600.0, **SMALL)
+    T, a = start(truth)
+    loop = fit_feature_effects(fd, T=T, shift_us=a, declared={"clock_drift_ppm": 600.0}, options=OPTS)
+    assert loop.accepted() == []
+    f = next(f for f in loop.findings if f.name == "clock_drift")
+    assert f.source == "declared" and f.params["b_ppm"] == 600.0
+    assert "clock_drift" not in loop.stages[0].candidates
+
+
+def test_structure_is_in_the_signatures_before_and_gone_after():
+    loop, _ = _loop(drift_ppm=1500.0)
+    before = {s.name: s for s in loop.before}
+    after = {s.name: s for s in loop.after}
+    assert abs(before["velocity_x_time"].z) > 4 and abs(after["velocity_x_time"].z) < 4
+    # the slope of the time residual against time is the drift the base model misses (ms per s = 1000 ppm)
+    assert before["velocity_x_time"].slope * 1000 == pytest.approx(1500.0, rel=0.35)
+
+
+# ----------------------------------------------------------------------------------- depth
+def _depth(seed=0, scale=1.0, offset_m=0.0, pairs=20, per=400):
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(0.8, 4.0, (pairs, per))
+    zl = scale * z + offset_m + rng.normal(0, 1, z.shape) * 0.004 * z ** 2  # stereo-like noise
+    bad = rng.random(z.shape) < 0.03  # edge outliers
+    zl[bad] += rng.normal(0, 0.3, bad.sum())
+    pair = np.repeat(np.arange(pairs), per)
+    xy = np.stack([rng.uniform(0, 640, z.size), rng.uniform(0, 480, z.size)], axis=1)
+    return DepthData(z.ravel(), zl.ravel(), pair, pair * 33_333.0, xy, np.hypot(xy[:, 0] - 320, xy[:, 1] - 240) / 600)
+
+
+@pytest.mark.parametrize("scale, offset_m, names", [
+    (1.0, 0.0, []), (1.01, 0.0, ["depth_scale"]), (1.0, 0.03, ["depth_offset"]),
+    (1.01, 0.03, ["depth_scale", "depth_offset"]),
+])
+def test_depth_scale_and_offset(scale, offset_m, names):
+    dl = fit_depth_effects(_depth(scale=scale, offset_m=offset_m), options=OPTS)
+    assert sorted(f.name for f in dl.findings if f.source == "found") == sorted(names)
+    assert dl.scale == pytest.approx(scale, abs=0.002)
+    assert dl.offset_m == pytest.approx(offset_m, abs=0.006)
+    for f in dl.findings:
+        k = next(iter(f.params))
+        truth = scale if k == "scale" else offset_m * 1e3
+        assert abs(f.params[k] - truth) <= 1.96 * f.std[k] + 1e-9
+
+
+def test_depth_correction_puts_lq_on_the_hq_scale():
+    dl = fit_depth_effects(_depth(scale=1.02), options=OPTS)
+    z = np.array([1.0, 2.0, np.nan], np.float32)
+    out = dl.correct(np.float32(1.02) * z)
+    assert np.allclose(out[:2], z[:2], atol=0.003) and np.isnan(out[2])
+
+
+# ----------------------------------------------------------------------------------- pieces
+def test_duplicates_found_from_hashes():
+    fn = np.arange(10, 16)
+    sha_d = ["a", "b", "b", "c", "c", "d"]
+    sha_c = {10: "A", 11: "B", 12: "B", 13: "C", 14: "X", 15: "D"}  # 14's colour differs: not a duplicate
+    assert duplicated(fn, sha_d, sha_c).tolist() == [2]
+    assert duplicated(fn, sha_d).tolist() == [2, 4]
+    p, lo, hi = drop_interval(10, 100)
+    assert p == 0.1 and lo < 0.1 < hi and 0.04 < lo and hi < 0.18
+
+
+def test_signature_slope_and_level_against_a_formula():
+    rng = np.random.default_rng(0)
+    x = rng.uniform(0, 4, 5000)
+    y = 0.5 + 2.0 * x + rng.normal(0, 1.0, x.size)
+    s = signature("t", x, y, covariate="x", response="y", group=np.repeat(np.arange(50), 100))
+    assert s.slope == pytest.approx(2.0, abs=4 * s.slope_se) and s.z > 10
+    flat = signature("f", x, 0.3 + rng.normal(0, 1.0, x.size), covariate="x", response="y", level=True)
+    assert abs(flat.slope) < 4 * flat.slope_se and flat.level_mean == pytest.approx(0.3, abs=0.1) and flat.z > 4
+
+
+def test_bootstrap_threshold_controls_false_alarms_on_noise():
+    """Linear problems of pure noise: a useless candidate column passes the threshold rarely."""
+    rng = np.random.default_rng(1)
+    G, per = 20, 60
+    group = np.repeat(np.arange(G), per)
+    alarms = 0
+    for trial in range(10):
+        J = np.column_stack([np.ones(G * per), rng.normal(size=(G * per, 3))])
+        r0 = rng.standard_t(4, G * per) * 0.3 + np.repeat(rng.normal(0, 0.05, G), per)
+        p = LinearProblem(r0, J, group, 1.0, ["base", "a", "b", "c"])
+        folds = folds_of(G)
+        cands = [np.array([1]), np.array([2]), np.array([3])]
+        thr, zmax = null_threshold(p, np.array([0]), cands, folds, replicates=20, seed=trial)
+        assert thr >= 3.0 and zmax.size == 20
+        h = HeldOut(p, np.arange(4), folds)
+        alarms += any(compare(h, np.array([0]), c).z > thr for c in cands)
+    assert alarms <= 1
+    # a real column is found
+    J = np.column_stack([np.ones(G * per), rng.normal(size=G * per)])
+    r0 = rng.normal(0, 0.3, G * per) + 0.2 * J[:, 1]
+    p = LinearProblem(r0, J, group, 1.0, ["base", "a"])
+    assert compare(HeldOut(p, np.arange(2), folds_of(G)), np.array([0]), np.array([1])).z > 5

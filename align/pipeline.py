@@ -544,7 +544,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
         if opts.report:
             from align.report import write_report
 
-            report = write_report(writer.root, setup, pf, table, example, meta)
+            report = write_report(writer.root, setup, pf, table, example, meta, truth=truth)
         writer.meta.update(meta)
         writer.close()
     except BaseException:

@@ -152,8 +152,9 @@ def _fmt_T(T) -> str:
     return "\n".join(rows)
 
 
-def write_report(root: Path, setup, pf, table, example: dict, meta: dict) -> Path:
-    """Write ``report.md``, ``report.html`` and ``figures/`` into ``root``; returns the Markdown path."""
+def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=None) -> Path:
+    """Write ``report.md``, ``report.html`` and ``figures/`` into ``root``; returns the Markdown path.
+    ``truth`` (simulated sessions): the end-to-end error of the loop's section against it."""
     root = Path(root)
     figs = root / "figures"
     _loss_figure(figs / "loss_vs_shift.png", pf)
@@ -201,6 +202,10 @@ def write_report(root: Path, setup, pf, table, example: dict, meta: dict) -> Pat
     if example:
         lines += ["## One frame", "", "![LQ colour and depth, the warped HQ depth, their difference and the region "
                   "of interest](figures/example.png)", ""]
+    if getattr(pf, "loop", None) is not None:
+        from align.loop.report import loop_section
+
+        lines += loop_section(root, setup, pf, truth)
     md = "\n".join(lines)
     path = root / "report.md"
     path.write_text(md)

@@ -50,6 +50,7 @@ class LoopResult:
     lq_duplicates: np.ndarray  # positions in the LQ depth stream
     correct_depth: bool
     seconds: dict = field(default_factory=dict)
+    base: dict = field(default_factory=dict)  # the base fit's geometry: T_lq_hq, K_lq, shift_us, drift_ppm, t0_us
 
     @property
     def changed_geometry(self) -> bool:
@@ -242,4 +243,6 @@ def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, 
     findings = list(fl.findings) + (list(dl.findings) if dl else []) + _frame_effects(ff, setup)
     secs["total"] = time.perf_counter() - t0
     secs.update({f"features.{k}": v for k, v in fl.seconds.items()})
-    return LoopResult(fl, dl, ff, findings, shift_us, drift, T_lq_hq, K_lq, K_lq_color, dups, correct_depth, secs)
+    base = {"T_lq_hq": pf.T_lq_hq, "K_lq": setup.K_lq, "shift_us": pf.shift.time_shift_us,
+            "drift_ppm": pf.shift.drift_ppm, "t0_us": t0_us}
+    return LoopResult(fl, dl, ff, findings, shift_us, drift, T_lq_hq, K_lq, K_lq_color, dups, correct_depth, secs, base)

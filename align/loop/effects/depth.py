@@ -52,9 +52,9 @@ class DepthEffect:
 
 
 DEPTH_SCALE = DepthEffect("depth_scale", "s_minus_1", "1", "LQ depth is scaled against HQ: z_LQ = s z_HQ",
-                          "depth_scale")
+                          "depth_scale", "constant")
 DEPTH_OFFSET = DepthEffect("depth_offset", "o_m", "m", "LQ depth is offset against HQ: z_LQ = z_HQ + o",
-                           "depth_offset_mm")
+                           "depth_offset_mm", "depth")
 
 
 def depth_effects() -> list[DepthEffect]:

@@ -34,6 +34,7 @@ class LensDistortion(Effect):
     def __init__(self, camera: str, coeffs: tuple[str, ...], *, requires: str | None = None) -> None:
         self.camera, self.params, self.requires = camera, tuple(coeffs), requires
         self.name = f"lens_{camera}_{'p' if coeffs[0].startswith('p') else coeffs[0]}"
+        self.signature = "radius" if camera == "lq" else "hq_radius"
         self.units = ("1",) * len(coeffs)
         self.steps = tuple(1e-4 if c.startswith("k") else 1e-5 for c in coeffs)
         self.declared_as = ("distortion_k1",) if (camera, coeffs) == ("lq", ("k1",)) else \

@@ -22,6 +22,7 @@ class RollingShutter(Effect):
     def __init__(self, camera: str) -> None:
         self.camera = camera
         self.name = f"rolling_shutter_{camera}"
+        self.signature = "velocity_x_row" if camera == "lq" else "velocity_x_hq_row"
         self.declared_as = ("rolling_shutter_ms",) if camera == "lq" else ("hq_rolling_shutter_ms",)
         self.what = f"the {camera.upper()} colour camera exposes its rows one after another (readout time r)"
 

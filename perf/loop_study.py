@@ -10,6 +10,11 @@ one-sided 95 % upper bound when none occurs: ``1 - 0.05^(1/n)``).
     bench/perf/loop_study.py --seeds 100-119 --seconds 3                       # clean: false alarms
     bench/perf/loop_study.py --seeds 100-103 --effect rolling_shutter_ms=10     # small size: power
     bench/perf/loop_study.py --seeds 11 --seconds 30 --scale 1                  # timing of a 30 s session
+    bench/perf/loop_study.py --synthetic --seeds 0-49                          # feature phase on formula probes
+
+``--synthetic`` runs the feature phase on probes made by formula (``align.loop.synthetic``:
+no renderer, no feature tracker): cheap enough for many seeds; effects ``drift_ppm``,
+``readout_ms``, ``k1``, ``hq_k1``.
 """
 from __future__ import annotations
 
@@ -59,17 +64,37 @@ def run_one(seed: int, effects: dict, args) -> dict:
                  effects=effects or None, undeclared=True, progress=False, force=True)
     t_sim = time.perf_counter() - t0
     setup = pair_setup(open_session(root), lq="lq", hq="hq")
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     pf = fit_pair(setup, AlignOptions(progress=False))
-    t_fit = time.perf_counter() - t1
+    t_fit, c_fit = time.perf_counter() - t1, time.process_time() - c1
     loop = close_loop(setup, pf, options=LoopOptions(replicates=args.replicates))
     found = {f.name: f.to_dict() for f in loop.findings if f.source == "found"}
-    return {"seed": seed, "effects": effects, "found": found, "seconds": {"simulate": t_sim, "fit": t_fit,
+    return {"seed": seed, "effects": effects, "found": found, "seconds": {"simulate": t_sim, "fit": t_fit, "cpu_fit": c_fit,
                                                                           **loop.seconds},
             "heldout_px": [loop.features.heldout_before.get("median_abs"), loop.features.heldout_after.get("median_abs")],
             "heldout_depth": None if loop.depth is None else [loop.depth.heldout_before["median_abs"],
                                                                loop.depth.heldout_after["median_abs"]],
             "threshold": loop.features.threshold, "unexplained": [s.name for s in loop.unexplained()]}
+
+
+SYNTH_EXPECT = {"drift_ppm": ("clock_drift", "b_ppm"), "readout_ms": ("rolling_shutter_lq", "readout_ms"),
+                "k1": ("lens_lq_k1", "k1"), "hq_k1": ("lens_hq_k1", "k1")}
+
+
+def run_synthetic(seed: int, effects: dict, args) -> dict:
+    from align.loop.loop import fit_feature_effects
+    from align.loop.synthetic import feature_data, start
+
+    fd, truth = feature_data(seed=seed, seconds=args.seconds, **effects)
+    T, a = start(truth, rng_seed=seed + 1)
+    t0, c0 = time.perf_counter(), time.process_time()
+    fl = fit_feature_effects(fd, T=T, shift_us=a, options=LoopOptions(replicates=args.replicates, seed=seed))
+    return {"seed": seed, "effects": effects, "found": {f.name: f.to_dict() for f in fl.findings if f.source == "found"},
+            "seconds": {"total": time.perf_counter() - t0, "cpu_total": time.process_time() - c0,
+                        **{f"features.{k}": v for k, v in fl.seconds.items()}},
+            "heldout_px": [fl.heldout_before.get("median_abs"), fl.heldout_after.get("median_abs")],
+            "heldout_depth": None, "threshold": fl.threshold, "unexplained": [s.name for s in fl.after if s.structured],
+            "synthetic": True}
 
 
 def summarise(rows: list[dict]) -> None:
@@ -84,7 +109,11 @@ def summarise(rows: list[dict]) -> None:
         p, lo, hi = drop_interval(k, n)
         print(f"  {name:22s} added in {k:2d} of {n}: rate {p:.2f} [{lo:.2f}, {hi:.2f}]")
     for sim_name, v in eff.items():
-        loop_name, param, conv = EXPECT.get(sim_name, (None, None, None))
+        if rows and rows[0].get("synthetic"):
+            loop_name, param = SYNTH_EXPECT.get(sim_name, (None, None))
+            conv = (lambda x: x)
+        else:
+            loop_name, param, conv = EXPECT.get(sim_name, (None, None, None))
         if loop_name is None:
             continue
         truth = conv(v)
@@ -103,7 +132,8 @@ def summarise(rows: list[dict]) -> None:
         print(f"  held-out depth residual, median abs %: before {100 * np.mean([h[0] for h in hd]):.3f}, "
               f"after {100 * np.mean([h[1] for h in hd]):.3f}")
     secs = {k: np.mean([r["seconds"].get(k, 0.0) for r in rows]) for k in
-            ("simulate", "fit", "total", "features", "features.bootstrap", "depth", "frames")}
+            ("simulate", "fit", "cpu_fit", "total", "cpu_total", "features", "features.base_fit", "features.bootstrap", "features.final",
+             "depth", "frames")}
     print("  seconds (mean): " + ", ".join(f"{k} {v:.1f}" for k, v in secs.items()))
     print(f"  unexplained signatures: {sorted({u for r in rows for u in r['unexplained']})}")
 
@@ -117,13 +147,15 @@ def main(argv=None) -> None:
     ap.add_argument("--replicates", type=int, default=100)
     ap.add_argument("--cache", default="/tmp/depthbench-loop-study")
     ap.add_argument("--jsonl", default=None, help="append every session's result to this file")
+    ap.add_argument("--synthetic", action="store_true", help="formula probes (align.loop.synthetic), feature phase only")
     args = ap.parse_args(argv)
     effects = {k: float(v) for k, _, v in (e.partition("=") for e in args.effect)}
     rows = []
     for seed in _seeds(args.seeds):
-        row = run_one(seed, effects, args)
+        row = run_synthetic(seed, effects, args) if args.synthetic else run_one(seed, effects, args)
         rows.append(row)
-        print(f"seed {seed}: added {sorted(row['found']) or 'nothing'}  ({row['seconds']['total']:.1f} s loop)",
+        print(f"seed {seed}: added {sorted(row['found']) or 'nothing'}  ({row['seconds']['total']:.1f} s loop, "
+              f"{row['seconds'].get('cpu_total', float('nan')):.1f} s CPU)",
               flush=True)
         if args.jsonl:
             with open(args.jsonl, "a") as f:

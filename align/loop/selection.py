@@ -89,8 +89,9 @@ def folds_of(n_groups: int, *, folds: int = 5, gap: int = 1) -> list[tuple[np.nd
 def _solve(G: np.ndarray, h: np.ndarray) -> np.ndarray:
     if G.shape[0] == 0:
         return np.zeros(0)
-    lam = 1e-9 * max(float(np.trace(G)), 1e-12)
-    return -np.linalg.solve(G + lam * np.eye(G.shape[0]), h)
+    G = G.copy()
+    G.flat[:: G.shape[0] + 1] += 1e-9 * max(float(np.trace(G)), 1e-12)
+    return -np.linalg.solve(G, h)
 
 
 def full_fit(p: LinearProblem, cols: np.ndarray, *, irls: int = 3) -> tuple[np.ndarray, np.ndarray]:
@@ -126,7 +127,10 @@ class HeldOut:
         self.Gr = np.add.reduceat(Jw[:, :, None] * J[:, None, :], p.starts, axis=0)
         self.hr = np.add.reduceat(Jw * p.r0[:, None], p.starts, axis=0)
         self.G_all, self.h_all = self.Gr.sum(axis=0), self.hr.sum(axis=0)
-        self.ends = np.append(p.starts[1:], p.r0.size)
+        ends = np.append(p.starts[1:], p.r0.size)
+        # per fold: the training normal equations (all columns) and the test rows (a contiguous slice)
+        self.train = [(self.G_all - self.Gr[ex].sum(axis=0), self.h_all - self.hr[ex].sum(axis=0)) for _, ex in folds]
+        self.test_rows = [slice(int(p.starts[t[0]]), int(ends[t[-1]])) for t, _ in folds]
 
     def _sub(self, cols) -> np.ndarray:
         return np.array([self.local[int(c)] for c in cols], np.int64)
@@ -135,13 +139,14 @@ class HeldOut:
         """Held-out robust loss per group ``(G,)``; ``rows_out`` ``(n,)`` receives the held-out residual rows."""
         p, k = self.p, self._sub(cols)
         loss = np.zeros(p.n_groups)
-        for test, excluded in self.folds:
-            G = (self.G_all - self.Gr[excluded].sum(axis=0))[np.ix_(k, k)]
-            delta = _solve(G, (self.h_all - self.hr[excluded].sum(axis=0))[k])
-            rows = np.arange(p.starts[test[0]], self.ends[test[-1]])
-            r = p.r0[rows] + (self.J[rows][:, k] @ delta if k.size else 0.0)
+        full = np.zeros(self.all_cols.size)
+        for (test, _), (G, h), sl in zip(self.folds, self.train, self.test_rows):
+            full[:] = 0.0
+            if k.size:
+                full[k] = _solve(G[k][:, k], h[k])
+            r = p.r0[sl] + self.J[sl] @ full
             if rows_out is not None:
-                rows_out[rows] = r
+                rows_out[sl] = r
             loss[test] = np.add.reduceat(rho(r, p.c), p.starts[test] - p.starts[test[0]])
         return loss
 
@@ -221,7 +226,7 @@ def null_threshold(p: LinearProblem, base: np.ndarray, candidates: list[np.ndarr
     all_cols = np.concatenate([base] + list(candidates))
     zmax = np.empty(replicates)
     for b in range(replicates):
-        h = HeldOut(p.with_r0(bootstrap_noise(p, r_fit, rng, parity=parity)), all_cols, folds, irls=2)
+        h = HeldOut(p.with_r0(bootstrap_noise(p, r_fit, rng, parity=parity)), all_cols, folds, irls=1)
         lb = h.losses(base)
         zmax[b] = max(z_of(lb - h.losses(np.concatenate([base, c]))) for c in candidates)
     return max(z_floor, float(np.quantile(zmax, 1 - alpha))), zmax

@@ -11,7 +11,7 @@ from align.loop.effects.frames import drop_interval, duplicated
 from align.loop.loop import LoopOptions, fit_depth_effects, fit_feature_effects
 from align.loop.selection import HeldOut, LinearProblem, compare, folds_of, null_threshold
 from align.loop.stratify import signature
-from tests.align.loop_synth import feature_data, start
+from align.loop.synthetic import feature_data, start
 
 SMALL = dict(seconds=8.0, probes=16, n=110)
 OPTS = LoopOptions(replicates=20)

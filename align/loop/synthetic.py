@@ -1,5 +1,6 @@
-"""Synthetic probes for the loop tests: features of a moving scene seen by two cameras, with the
-effects of the library switched on by formula (an independent reference: no renderer, no fit).
+"""Synthetic probes for tests and studies of the loop: features of a moving scene seen by two cameras,
+with the effects of the library switched on by formula (an independent reference: no renderer, no fit).
+Pure numpy.
 
 Scene time = HQ clock. HQ probe ``p`` at stamp ``t_p`` lifts ``N`` points; a moving point is
 ``X(t) = X + V (t - t_p)`` (HQ depth frame). The LQ frame stamped ``u`` (LQ clock) shows row ``y``

@@ -47,6 +47,11 @@ def register(subparsers) -> None:
                         "leaves it unobservable: add --allow-unobservable)")
     g.add_argument("--residual-k", type=float, default=6.0, metavar="K",
                    help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
+    g = p.add_argument_group("effects (the alignment loop, align/loop)")
+    g.add_argument("--no-loop", action="store_true",
+                   help="skip the effect loop (drift, rolling shutter, lens, depth scale/offset, duplicated frames)")
+    g.add_argument("--keep-lq-depth", action="store_true",
+                   help="write the LQ depth as recorded even when the loop finds a depth scale or offset")
     g = p.add_argument_group("output")
     g.add_argument("--no-truth", action="store_true", help="do not attach the simulator's truth depth (simulated sessions)")
     g.add_argument("--no-report", action="store_true", help="skip report.md and the figures")
@@ -71,7 +76,8 @@ def run(args: argparse.Namespace) -> int:
         features=args.features, max_features=args.max_features, probes=args.probes, association=args.association,
         max_dt_ms=args.max_dt_ms, residual_k=args.residual_k, time_model=args.time_model, workers=args.workers,
         on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
-        report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board)
+        report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
+        loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth)
     sh = r.shift
     state = "" if sh.observable else "  (UNOBSERVABLE: placeholder, see the report)"
     print(f"aligned dataset: {r.out}")
@@ -80,6 +86,11 @@ def run(args: argparse.Namespace) -> int:
           f"{1000 * float((r.T_lq_hq.t ** 2).sum() ** 0.5):.1f} mm; feature RMS {r.fit.rms_px:.2f} px")
     if r.rig is not None:
         print(f"  rig: {len(r.views)} views in the frame of {r.rig.reference} (rig.json)")
+    loop = getattr(r.views.get(next(iter(r.views), None)), "loop", None) if r.views else None
+    if loop is not None:
+        found = [f"{f.name} ({', '.join(f'{k} {v:.4g}' for k, v in f.params.items())})" for f in loop.findings]
+        print(f"  effects: {'; '.join(found) if found else 'none needed'}"
+              + (f"; unexplained: {', '.join(s.name for s in loop.unexplained())}" if loop.unexplained() else ""))
     dropped = r.dropped if isinstance(r.dropped, dict) else {}
     print(f"  pairs kept: {r.kept}" + (f"; dropped: {dropped}" if dropped else ""))
     if r.report is not None:

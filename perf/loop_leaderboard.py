@@ -4,7 +4,7 @@ Aligns the session twice (``loop=False`` / ``loop=True``), scores the same metho
 ``bench run`` (against the HQ reference and the truth), and prints how each method's error and
 rank change (``bench.loop_compare``), and whether the HQ-reference ranking matches the truth's.
 
-    bench/perf/loop_leaderboard.py --effect distortion_k1=0.1 --seconds 4 --methods raw,bilateral,gaussian
+    perf/loop_leaderboard.py --effect distortion_k1=0.1 --seconds 4 --methods raw,bilateral,gaussian
 """
 from __future__ import annotations
 
@@ -12,13 +12,11 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from align.pipeline import align_session  # noqa: E402
-from bench.loop_compare import compare_leaderboards, markdown, rank_agreement  # noqa: E402
-from bench.results import load_results  # noqa: E402
-from bench.runner import run_benchmark  # noqa: E402
-from capture.sim import simulate  # noqa: E402
+from align.pipeline import align_session
+from bench.loop_compare import compare_leaderboards, markdown, rank_agreement
+from bench.results import load_results
+from bench.runner import run_benchmark
+from capture.sim import simulate
 
 
 def main(argv=None) -> None:

@@ -7,12 +7,13 @@ estimates against the truth (and whether the interval covered it), the held-out 
 and after, and where the loop's time went. Clean sessions give the false-alarm rate (with the
 one-sided 95 % upper bound when none occurs: ``1 - 0.05^(1/n)``).
 
-    bench/perf/loop_study.py --seeds 100-119 --seconds 3                       # clean: false alarms
-    bench/perf/loop_study.py --seeds 100-103 --effect rolling_shutter_ms=10     # small size: power
-    bench/perf/loop_study.py --seeds 11 --seconds 30 --scale 1                  # timing of a 30 s session
-    bench/perf/loop_study.py --synthetic --seeds 0-49                          # feature phase on formula probes
+    perf/loop_study.py                                                    # formula probes, clean, seeds 0-19
+    perf/loop_study.py --simulated --seeds 100-119 --seconds 3            # clean: false alarms
+    perf/loop_study.py --simulated --seeds 100-103 --effect rolling_shutter_ms=10     # small size: power
+    perf/loop_study.py --simulated --seeds 11 --seconds 30 --scale 1                  # timing of a 30 s session
+    perf/loop_study.py --seeds 0-49 --effect k1=0.02                                  # formula probes: power
 
-``--synthetic`` runs the feature phase on probes made by formula (``align.loop.synthetic``:
+Without ``--simulated`` the study runs the feature phase on probes made by formula (``align.loop.synthetic``:
 no renderer, no feature tracker): cheap enough for many seeds; effects ``drift_ppm``,
 ``readout_ms``, ``k1``, ``hq_k1``.
 """
@@ -26,14 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-from align.loop.effects.frames import drop_interval  # noqa: E402
-from align.loop.loop import LoopOptions  # noqa: E402
-from align.loop.run import close_loop  # noqa: E402
-from align.pipeline import AlignOptions, fit_pair, pair_setup  # noqa: E402
-from capture.session import open_session  # noqa: E402
-from capture.sim import simulate  # noqa: E402
+from align.loop.effects.frames import drop_interval
+from align.loop.loop import LoopOptions
+from align.loop.run import close_loop
+from align.pipeline import AlignOptions, fit_pair, pair_setup
+from capture.session import open_session
+from capture.sim import simulate
 
 #: simulator effect -> (loop effect, parameter, conversion of the simulator value)
 EXPECT = {
@@ -140,16 +139,19 @@ def summarise(rows: list[dict]) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="100-119")
+    ap.add_argument("--seeds", default="0-19")
     ap.add_argument("--effect", action="append", default=[], help="NAME=VALUE (simulator effect, undeclared)")
-    ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--seconds", type=float, default=None, help="session length (default 3 s simulated, 8 s formula)")
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--replicates", type=int, default=100)
     ap.add_argument("--cache", default="/tmp/depthbench-loop-study")
     ap.add_argument("--jsonl", default=None, help="append every session's result to this file")
-    ap.add_argument("--synthetic", action="store_true", help="formula probes (align.loop.synthetic), feature phase only")
+    ap.add_argument("--simulated", action="store_true", help="rendered lq-hq sessions and the whole loop (slow)")
     args = ap.parse_args(argv)
     effects = {k: float(v) for k, _, v in (e.partition("=") for e in args.effect)}
+    args.synthetic = not args.simulated
+    if args.seconds is None:
+        args.seconds = 8.0 if args.synthetic else 3.0
     rows = []
     for seed in _seeds(args.seeds):
         row = run_synthetic(seed, effects, args) if args.synthetic else run_one(seed, effects, args)

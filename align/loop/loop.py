@@ -287,8 +287,20 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
         findings.append(Finding(best, "features", {}, {}, dict(zip(e.params, e.units)), "found", e.what,
                                 e.signature, comps[best], stage, extra={"look_alikes": alike} if alike else {}))
         x = refit(model, x, _cols(model, accepted), c=c, max_nfev=o.max_nfev)
-    # final: covariance, held-out error and signatures
     t0 = time.perf_counter()
+    cov, after_summary, before, after = _finalise(model, lib, fixed, findings, x, x_base, accepted, c=c, folds=folds)
+    secs["final"] = time.perf_counter() - t0
+    secs["total"] = time.perf_counter() - t_start
+    names = model.names()
+    return FeatureLoop(model, x, x_base, [names[i] for i in _cols(model, accepted)], cov, findings, stages,
+                       float(threshold or o.z_floor), null_z, c, before, after, before_summary or {}, after_summary, secs)
+
+
+def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_base, accepted, *, c: float, folds):
+    """Parameters with their cluster-robust deviations into the findings (declared ones first), the
+    held-out error of the final model, and the signatures before (base fit) and after."""
+    data = model.data
+    group = np.repeat(data.probe, 2)
     free = _cols(model, accepted)
     r0, Jf = model.residuals(x), model.jacobian(x, columns=free)
     cov = sandwich(Jf, r0, group, c)
@@ -296,24 +308,20 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
     pos_of = {int(i): k for k, i in enumerate(free)}
     for f in findings:
         e = next(e for e in lib if e.name == f.name)
-        sl = model.layout[e.name]
-        f.params = {pname: float(x[i]) for pname, i in zip(e.params, range(sl.start, sl.stop))}
-        f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, range(sl.start, sl.stop))}
+        idx = range(model.layout[e.name].start, model.layout[e.name].stop)
+        f.params = {pname: float(x[i]) for pname, i in zip(e.params, idx)}
+        f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, idx)}
     for e in fixed:
         sl = model.layout[e.name]
-        findings.insert(0, Finding(e.name, "features", dict(zip(e.params, x[sl])), dict(zip(e.params, [0.0] * len(e.params))),
+        findings.insert(0, Finding(e.name, "features", dict(zip(e.params, x[sl])), dict.fromkeys(e.params, 0.0),
                                    dict(zip(e.params, e.units)), "declared", e.what, e.signature))
-    p = LinearProblem(r0, model.jacobian(x, columns=free), group, c, [model.names()[i] for i in free])
+    p = LinearProblem(r0, Jf, group, c, [model.names()[i] for i in free])
     after_summary, _ = _heldout_summary(HeldOut(p, np.arange(free.size), folds), np.arange(free.size))
     s_b, st_b = _instants(model, x_base)
     s_a, st_a = _instants(model, x)
     before = feature_signatures(data, model.residuals(x_base), shift_us=s_b, stamps=st_b)
     after = feature_signatures(data, r0, shift_us=s_a, stamps=st_a)
-    secs["final"] = time.perf_counter() - t0
-    secs["total"] = time.perf_counter() - t_start
-    names = model.names()
-    return FeatureLoop(model, x, x_base, [names[i] for i in free], cov, findings, stages, float(threshold or o.z_floor),
-                       null_z, c, before, after, before_summary or {}, after_summary, secs)
+    return cov, after_summary, before, after
 
 
 # ----------------------------------------------------------------------------------- depth phase

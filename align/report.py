@@ -23,9 +23,10 @@ _CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto}table{bord
         "padding:.5em;border-left:4px solid #c00}figure{margin:1em 0}figcaption{font-size:.85em;color:#555}")
 
 
-def _html(md: str, title: str) -> str:
-    """The report page: the Markdown rendered by markdown-it-py (figures link the PNGs beside it)."""
-    return html_page(markdown_to_html(md), title=title, css=_CSS)
+def _html(md: str, title: str, *, links: dict[str, str] | None = None) -> str:
+    """The report page: the Markdown rendered by markdown-it-py (figures link the PNGs beside it;
+    ``links``: link targets to replace, e.g. a view's ``report.md`` by its ``report.html``)."""
+    return html_page(markdown_to_html(md, links=links), title=title, css=_CSS)
 
 
 def _save(fig, path: Path) -> None:
@@ -233,5 +234,6 @@ def write_rig_report(root: Path, session, rig, fits: dict, outputs: dict) -> Pat
     md = "\n".join(lines) + "\n"
     path = root / "report.md"
     path.write_text(md)
-    (root / "report.html").write_text(_html(md, f"Rig calibration: {session.name}"))
+    (root / "report.html").write_text(_html(md, f"Rig calibration: {session.name}",
+                                            links={f"{v}/report.md": f"{v}/report.html" for v in fits}))
     return path

@@ -8,7 +8,7 @@ changes are made on the parsed tokens, not on text:
 * a paragraph that holds only an image becomes ``<figure>`` with the image's alt text as its
   ``<figcaption>``;
 * images whose link is a key of ``images`` are inlined as ``data:`` URIs, so the page needs no
-  other file;
+  other file; links that are keys of ``links`` are replaced (e.g. ``report.md`` -> ``report.html``);
 * ``cls`` sets the CSS class of the block's top-level elements, ``row_classes`` those of a
   table's body rows (in order).
 
@@ -28,7 +28,7 @@ _IMAGE_TYPES = {"png": "image/png", "jpg": "image/jpeg", "jpeg": "image/jpeg", "
 
 
 def markdown_to_html(text: str, *, cls: str | None = None, row_classes: Sequence[str] | None = None,
-                     images: Mapping[str, bytes] | None = None) -> str:
+                     images: Mapping[str, bytes] | None = None, links: Mapping[str, str] | None = None) -> str:
     """Render a Markdown fragment as an HTML fragment (see the module docstring).
 
     Args:
@@ -36,11 +36,14 @@ def markdown_to_html(text: str, *, cls: str | None = None, row_classes: Sequence
         cls: CSS class given to every top-level element of the fragment (None: no class).
         row_classes: CSS class of each table body row, in order ("" for none; None: no classes).
         images: file bytes by the link used in ``text`` (e.g. ``"figures/a.png"``) to inline them.
+        links: new targets by the link used in ``text`` (e.g. ``{"view0/report.md": "view0/report.html"}``).
     """
     tokens = _MD.parse(text)
     _set_classes(tokens, cls, row_classes)
     if images:
         _inline_images(tokens, images)
+    if links:
+        _relink(tokens, links)
     return _MD.renderer.render(_figures(tokens), _MD.options, {})
 
 
@@ -71,6 +74,13 @@ def _inline_images(tokens: list[Token], images: Mapping[str, bytes]) -> None:
             if src in images:
                 mime = _IMAGE_TYPES.get(str(src).rsplit(".", 1)[-1].lower(), "application/octet-stream")
                 child.attrSet("src", f"data:{mime};base64,{base64.b64encode(images[src]).decode()}")
+
+
+def _relink(tokens: list[Token], links: Mapping[str, str]) -> None:
+    for t in tokens:
+        for child in t.children or ():
+            if child.type == "link_open" and child.attrGet("href") in links:
+                child.attrSet("href", links[child.attrGet("href")])
 
 
 def _figures(tokens: list[Token]) -> list[Token]:

@@ -40,6 +40,13 @@ def test_a_paragraph_with_only_an_image_becomes_a_figure_with_its_inlined_png_an
     assert "<em>text</em>" in out
 
 
+def test_links_named_in_links_are_replaced_others_kept():
+    out = markdown_to_html("[a](v0/report.md), [b](v1/report.md) and [c](https://example.org)",
+                           links={"v0/report.md": "v0/report.html"})
+    hrefs = [a["href"] for t, a in _Tags(out).tags if t == "a"]
+    assert hrefs == ["v0/report.html", "v1/report.md", "https://example.org"]
+
+
 def test_raw_html_in_the_text_is_escaped_not_passed_through():
     out = markdown_to_html("a <script>alert(1)</script> & b\n\n| x |\n|---|\n| <b>y</b> |\n")
     assert "<script" not in out and "<b>" not in out

@@ -63,6 +63,9 @@ def register(subparsers) -> None:
                    help="'all' (every registered method) or a comma-separated list, e.g. raw,bf,jbf,rgf "
                         "(bf/jbf/rgf name bilateral/joint_bilateral/rolling_guidance); default: all")
     p.add_argument("--out", required=True, metavar="RESULTS", help="results folder (see below)")
+    p.add_argument("--allow-train-frames", action="store_true",
+                   help="score learned methods even on datasets of their own training/validation split "
+                        "(refused by default; such columns are marked in the key and the leaderboard)")
     p.add_argument("--param", action="append", default=[], metavar="METHOD.K=V",
                    help="a parameter of one method, e.g. bf.sigma_color=0.02 or ssdd_unet.weights=RUN/model.safetensors "
                         "(repeatable; a learned method joins 'all' once its weights are given)")
@@ -119,7 +122,7 @@ def _run(args) -> int:
     config = MetricConfig(radius_m=args.radius_mm / 1000.0)
     res = run_benchmark(args.data, args.methods, args.out, config=config, jobs=args.jobs, workers=args.workers,
                         scheduler=args.scheduler, force=args.force, progress=args.progress, report=not args.no_report,
-                        params=_method_params(args.param))
+                        params=_method_params(args.param, allow_train_frames=args.allow_train_frames))
     print(f"{res.table_path}: {len(res.table)} rows ({res.computed} results computed, {res.reused} reused from the "
           "cache)")
     for s in res.superseded:
@@ -129,8 +132,11 @@ def _run(args) -> int:
     return 0
 
 
-def _method_params(items: list[str]) -> dict[str, dict]:
-    """``["bf.sigma_color=0.02", ...]`` -> ``{"bf": {"sigma_color": 0.02}}`` (values as ``methods run --param``)."""
+def _method_params(items: list[str], *, allow_train_frames: bool = False) -> dict[str, dict]:
+    """``["bf.sigma_color=0.02", ...]`` -> ``{"bf": {"sigma_color": 0.02}}`` (values as ``methods run --param``).
+
+    ``allow_train_frames`` adds ``allow_train_frames=true`` to every configured method that has it
+    (learned methods: score their own training data, marked in the key and the leaderboard)."""
     from methods.cli import parse_params
 
     by_method: dict[str, list[str]] = {}
@@ -139,7 +145,14 @@ def _method_params(items: list[str]) -> dict[str, dict]:
         if not dot or not method.strip() or "=" not in rest:
             raise BenchError(f"--param {item!r}: expected METHOD.NAME=VALUE, e.g. bf.sigma_color=0.02")
         by_method.setdefault(method.strip(), []).append(rest)
-    return {method: parse_params(values) for method, values in by_method.items()}
+    out = {method: parse_params(values) for method, values in by_method.items()}
+    if allow_train_frames:
+        from methods.registry import available, resolve_name
+
+        for method, values in out.items():
+            if "allow_train_frames" in available()[resolve_name(method)].defaults:
+                values.setdefault("allow_train_frames", True)
+    return out
 
 
 def _report(args) -> int:

@@ -405,6 +405,34 @@ def _inventory_section(doc: _Doc, df: pd.DataFrame, datasets: pd.DataFrame) -> N
     doc.table(["dataset", "sequence", "frames", "checksum"], drows)
 
 
+def _learned_section(doc: _Doc, df: pd.DataFrame, root: Path) -> None:
+    """Each learned column's weights, training manifest and config (from ``results.json``), and a loud
+    warning for any column scored on its own training or validation data."""
+    try:
+        methods = {m["key"]: m for m in R.read_manifest(root).get("methods", [])}
+    except Exception:   # noqa: BLE001 - the table alone still makes a leaderboard
+        return
+    labels = method_labels(df)
+    learned = [(labels[k], methods[k]) for k in labels if k in methods and methods[k].get("learned")]
+    if not learned:
+        return
+    doc.heading("Learned methods")
+    rows, warnings = [], []
+    for label, m in learned:
+        w, p = m.get("weights") or {}, m.get("provenance") or {}
+        rows.append([label, f"`{Path(str(w.get('file', '?'))).name}` sha256 `{str(w.get('sha256', ''))[:16]}`",
+                     f"{p.get('train_manifest', '?')} (`{str(p.get('train_manifest_sha256') or '')[:16]}`)",
+                     f"`{p.get('config_file', '?')}`", ", ".join(p.get("trained_on", [])) or "?"])
+        if p.get("WARNING"):
+            warnings.append(f"**WARNING: {label} was {p['WARNING']}; its numbers there are not a test score.**")
+    doc.table(["column", "weights", "training manifest", "config", "trained / validated on"], rows)
+    for text in warnings:
+        doc.para(text, cls="warning")
+    doc.para("A learned method is refused on datasets of its own training or validation split (same dataset "
+             "checksum or same source recording), unless explicitly allowed; allowed columns are marked above.",
+             cls="note")
+
+
 DEFINITIONS = (
     "**MSE / RMSE / MAE**: over pixels valid in both the output and the reference, inside the ROI, in "
     "millimetres (SSDD's comparison). **Plane-fit RMSE** (DDD): for each reference point, the least-squares "
@@ -431,6 +459,7 @@ def build_report(df: pd.DataFrame, *, root: Path, config: dict | None, n_boot: i
     _qualitative_section(doc, df, root, datasets, max_qualitative)
     _coverage_section(doc, df, config)
     _inventory_section(doc, df, datasets)
+    _learned_section(doc, df, root)
     doc.heading("Definitions")
     doc.para(DEFINITIONS)
     return doc

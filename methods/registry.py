@@ -16,10 +16,11 @@ from methods.gaussian import GaussianFilter
 from methods.joint_bilateral import JointBilateralFilter
 from methods.raw import Raw
 from methods.rolling_guidance import RollingGuidanceFilter
+from methods.ssdd.denoise import SSDDLSTMDenoiser, SSDDUNetDenoiser
 
 #: Built-in methods, in listing order.
 BUILTIN: tuple[type[Denoiser], ...] = (Raw, GaussianFilter, BilateralFilter, JointBilateralFilter,
-                                       RollingGuidanceFilter)
+                                       RollingGuidanceFilter, SSDDUNetDenoiser, SSDDLSTMDenoiser)
 
 #: The seed report's abbreviations (Table I), accepted wherever a method name is.
 ALIASES = {"bf": "bilateral", "jbf": "joint_bilateral", "rgf": "rolling_guidance"}

@@ -4,7 +4,7 @@ A file holds named tensors and a flat ``str -> str`` metadata map (the safetenso
 nothing else: loading never unpickles Python objects, so a weights file from elsewhere cannot run
 code. Every file written here carries ``format = depthbench.weights`` and a ``kind`` in its
 metadata (``weights``: what inference loads; ``checkpoint``: weights plus optimizer state for
-resuming); other JSON values in the metadata (config, training provenance) are JSON strings.
+resuming; ``predictions``: arrays a run computed, e.g. out-of-fold predictions); other JSON values in the metadata (config, training provenance) are JSON strings.
 
 A missing, truncated, corrupt or foreign file (a ``torch.save`` pickle, another program's
 safetensors) is a one-line :class:`methods.errors.CheckpointError` naming the file.
@@ -18,12 +18,12 @@ from pathlib import Path
 
 import torch
 
-from depthbench.fsutil import atomic_output, sha256_file
+from depthbench.fsutil import atomic_output, sha256_bytes, sha256_file
 from methods.errors import CheckpointError
 
 FORMAT = "depthbench.weights"
 FORMAT_VERSION = "1"
-KINDS = ("weights", "checkpoint")
+KINDS = ("weights", "checkpoint", "predictions")
 
 
 @dataclass
@@ -60,33 +60,35 @@ def save_tensors(path: str | os.PathLike, tensors: dict[str, torch.Tensor], *, k
     return sha256_file(path)
 
 
-def load_tensors(path: str | os.PathLike, *, kind: str | None = None) -> TensorFile:
-    """Read a file written by :func:`save_tensors`; ``kind`` (if given) must match.
-
-    Raises :class:`CheckpointError` (one line) for anything else.
-    """
-    from safetensors import SafetensorError
-    from safetensors.torch import load_file, safe_open
-
-    path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"{path}: no such weights file")
+def read_header(data: bytes, *, where: str | os.PathLike) -> dict:
+    """The string metadata of a safetensors file's header (from its bytes), without reading tensors."""
+    if len(data) < 8:
+        raise CheckpointError(f"{where}: not a readable safetensors weights file (too short); "
+                              "weights are loaded as tensors only, never unpickled")
+    n = int.from_bytes(data[:8], "little")
     try:
-        with safe_open(str(path), framework="pt") as f:
-            header = f.metadata() or {}
-        tensors = load_file(str(path))
-    except (SafetensorError, OSError, ValueError, RuntimeError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise CheckpointError(f"{path}: not a readable safetensors weights file ({reason}); "
+        if n > len(data) - 8:
+            raise ValueError("header length beyond the end of the file")
+        header = json.loads(data[8:8 + n])
+        if not isinstance(header, dict):
+            raise ValueError("header is not a JSON object")
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise CheckpointError(f"{where}: not a readable safetensors weights file ({exc}); "
                               "weights are loaded as tensors only, never unpickled") from None
+    meta = header.get("__metadata__") or {}
+    return meta if isinstance(meta, dict) else {}
+
+
+def decode_meta(header: dict, *, where: str | os.PathLike, kind: str | None = None) -> dict:
+    """Check a header's format fields (and ``kind``) and JSON-decode the other metadata values."""
     if header.get("format") != FORMAT:
-        raise CheckpointError(f"{path}: not a depthbench weights file (metadata format {header.get('format')!r}, "
+        raise CheckpointError(f"{where}: not a depthbench weights file (metadata format {header.get('format')!r}, "
                               f"expected {FORMAT!r})")
     if header.get("format_version") != FORMAT_VERSION:
-        raise CheckpointError(f"{path}: weights format version {header.get('format_version')!r} is not "
+        raise CheckpointError(f"{where}: weights format version {header.get('format_version')!r} is not "
                               f"{FORMAT_VERSION!r}")
     if kind is not None and header.get("kind") != kind:
-        raise CheckpointError(f"{path}: holds {header.get('kind')!r}, expected {kind!r}")
+        raise CheckpointError(f"{where}: holds {header.get('kind')!r}, expected {kind!r}")
     meta = {}
     for k, v in header.items():
         if k in ("format", "format_version", "kind"):
@@ -94,9 +96,39 @@ def load_tensors(path: str | os.PathLike, *, kind: str | None = None) -> TensorF
             continue
         try:
             meta[k] = json.loads(v)
-        except json.JSONDecodeError:
-            raise CheckpointError(f"{path}: metadata field {k!r} is not JSON") from None
-    return TensorFile(tensors, meta, path, sha256_file(path))
+        except (json.JSONDecodeError, TypeError):
+            raise CheckpointError(f"{where}: metadata field {k!r} is not JSON") from None
+    return meta
+
+
+def decode_tensors(data: bytes, *, where: str | os.PathLike, kind: str | None = None) -> TensorFile:
+    """A :class:`TensorFile` from the bytes of a file written by :func:`save_tensors` (never unpickles)."""
+    from safetensors import SafetensorError
+    from safetensors.torch import load
+
+    meta = decode_meta(read_header(data, where=where), where=where, kind=kind)
+    try:
+        tensors = load(data)
+    except (SafetensorError, ValueError, RuntimeError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise CheckpointError(f"{where}: not a readable safetensors weights file ({reason}); "
+                              "weights are loaded as tensors only, never unpickled") from None
+    return TensorFile(tensors, meta, Path(where), sha256_bytes(data))
+
+
+def load_tensors(path: str | os.PathLike, *, kind: str | None = None) -> TensorFile:
+    """Read a file written by :func:`save_tensors`; ``kind`` (if given) must match.
+
+    Raises :class:`CheckpointError` (one line) for anything else.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise CheckpointError(f"{path}: no such weights file") from None
+    except OSError as exc:
+        raise CheckpointError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return decode_tensors(data, where=path, kind=kind)
 
 
 def load_state(module: torch.nn.Module, tensors: dict[str, torch.Tensor], *, where: str | os.PathLike) -> None:

@@ -13,7 +13,8 @@
 
 ``RUN/oof.json`` records, for every training sequence, its fold, the model that predicted it and
 the checksums of the sequences that model was trained on; each fold's checkpoint records the same
-list independently (``trained_on``). Weights: ``RUN/ssdd_unet.safetensors`` (level 1) and
+list independently (``trained_on``), and ``RUN/oof_predictions.safetensors`` holds the predictions
+level 2 was trained on. Weights: ``RUN/ssdd_unet.safetensors`` (level 1) and
 ``RUN/ssdd_lstm.safetensors`` (both levels).
 """
 from __future__ import annotations
@@ -26,6 +27,7 @@ import torch
 from align.dataset import AlignedDataset
 from depthbench.fsutil import atomic_write_json
 from methods.errors import TrainingError
+from methods.nn.checkpoint import save_tensors
 from methods.nn.data import AlignedSamples
 from methods.nn.train import RunContext, Trainer, register_trainer
 from methods.nn.trainer import FitJob, seeded
@@ -34,6 +36,7 @@ from methods.ssdd.model import level1_depth, level1_loss, level2_loss
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 
 OOF_JSON = "oof.json"
+OOF_PREDICTIONS = "oof_predictions.safetensors"
 
 
 def assign_folds(datasets: list[AlignedDataset], k: int, *, seed: int) -> list[int]:
@@ -128,6 +131,8 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     oof, record = out_of_fold(ctx, cfg)
     if ctx.dist.main:
         atomic_write_json(ctx.out / OOF_JSON, record)
+        save_tensors(ctx.out / OOF_PREDICTIONS, {k: torch.from_numpy(v) for k, v in oof.items()}, kind="predictions",
+                     meta={"what": "out-of-fold level-1 predictions (metres) by dataset checksum", "oof": record})
     final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1 final")
     unet_weights = ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))
     val_preds = {ds.checksum: predict_level1(final, ds, cfg.level1) for ds in validation}

@@ -1,0 +1,157 @@
+"""SSDD through the Denoiser interface: ``ssdd_unet`` (frames, batched) and ``ssdd_lstm`` (sequences).
+
+Both take ``weights=RUN/<method>.safetensors`` from ``depthbench methods train``; the networks are
+rebuilt from the config stored in the file. ``fill_holes=false`` (default) keeps the LQ sensor's
+holes as holes (NaN), so scores compare like with like; ``true`` returns the networks' value at
+every pixel. Each refuses a dataset of its own training or validation split
+(:func:`methods.nn.weights.leak`) unless ``allow_train_frames=true``, which the leaderboard shows
+in the method key and provenance.
+
+torch is imported only when a network is built (``prepare``), so listing methods stays fast.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+
+from methods.base import Denoiser, FrameInput, check_flag, resolve_device
+
+log = logging.getLogger(__name__)
+
+_HELP = {
+    "weights": "weights file from 'depthbench methods train' (RUN/<method>.safetensors)",
+    "fill_holes": "true: output depth also where the LQ sensor has none (default false: keep its holes)",
+    "allow_train_frames": "true: score even on the weights' own training/validation datasets (marked loudly)",
+}
+
+
+class _SSDDBase(Denoiser):
+    learned = True
+    weights_param = "weights"
+    device = "auto"
+    trained_as: tuple[str, ...] = ()
+    levels = 1
+    defaults = {"weights": None, "fill_holes": False, "allow_train_frames": False}
+    param_help = _HELP
+
+    def check_params(self, params: dict[str, Any]) -> None:
+        from methods.nn.weights import weights_meta
+
+        check_flag(params["fill_holes"], "fill_holes", method=self.name)
+        check_flag(params["allow_train_frames"], "allow_train_frames", method=self.name)
+        self.meta = weights_meta(self.params["weights"], methods=self.trained_as)
+        self.config = self._config(self.meta)
+        self.uses_color = bool(self.config.level1.model.use_color)
+        self.leaked: list[str] = []
+
+    def _config(self, meta: dict):
+        from methods.nn.config import from_dict
+        from methods.ssdd.config import SSDDConfig
+
+        return from_dict(SSDDConfig, meta.get("config") or {}, where=str(self.params["weights"]))
+
+    def check_dataset(self, dataset: Any) -> None:
+        from methods.nn.weights import TrainingDataError, leak
+
+        why = leak(self.meta, dataset)
+        if why is None:
+            return
+        if not self.params["allow_train_frames"]:
+            raise TrainingDataError(f"{self.name}: {why}; scoring it would flatter the model "
+                                    "(allow_train_frames=true to score it anyway, marked)")
+        self.leaked.append(dataset.name)
+        log.warning("%s: SCORED ON ITS OWN TRAINING DATA: %s", self.name, why)
+
+    def provenance(self) -> dict[str, Any]:
+        from methods.nn.weights import provenance
+
+        out = provenance(self.meta)
+        if self.leaked:
+            out["WARNING"] = f"scored on its own training/validation data: {', '.join(sorted(set(self.leaked)))}"
+        return out
+
+    def _load(self) -> dict:
+        import torch
+
+        from methods.nn.checkpoint import decode_tensors, load_state
+        from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
+
+        f = decode_tensors(self.weights_bytes(), where=self.weights_path, kind="weights")
+        dev = torch.device(resolve_device(self.device))
+        nets = {"level1": SSDDUNet(self.config.level1.model)}
+        if self.levels == 2:
+            nets["level2"] = SSDDLSTMUNet(self.config.level2.model)
+        for name, net in nets.items():
+            load_state(net, f.prefixed(f"{name}/"), where=self.weights_path)
+            net.to(dev).eval()
+        return {"device": dev, **nets}
+
+    def prepare(self) -> None:
+        self.runtime.update(self._load())
+
+    def _tensors(self, frames: list[FrameInput]):
+        import torch
+
+        dev = self.runtime["device"]
+        depth = torch.from_numpy(np.stack([f.depth for f in frames])[:, None]).to(dev)
+        rgb = None
+        if self.uses_color:
+            rgb = torch.from_numpy(np.stack([f.color for f in frames]).transpose(0, 3, 1, 2).astype(np.float32)
+                                   / 255.0).to(dev)
+        return depth, rgb
+
+    def _finish(self, out, depth_np: np.ndarray) -> np.ndarray:
+        out = out.float().cpu().numpy()
+        if not self.params["fill_holes"]:
+            out = np.where(np.isfinite(depth_np), out, np.nan)
+        return out.astype(np.float32)
+
+
+class SSDDUNetDenoiser(_SSDDBase):
+    """SSDD level 1 (section III-C): a UNet on the LQ depth, trained with eq. 32."""
+
+    name = "ssdd_unet"
+    version = "1"
+    description = "SSDD level 1: UNet trained against the aligned HQ depth (eq. 32); needs weights"
+    trained_as = ("ssdd_unet", "ssdd_lstm")
+    batch_size = 4
+
+    def _denoise_batch(self, frames: list[FrameInput]) -> list[np.ndarray]:
+        import torch
+
+        from methods.ssdd.model import level1_depth
+
+        shapes = {f.depth.shape for f in frames}
+        if len(shapes) > 1:
+            return [self._denoise_batch([f])[0] for f in frames]
+        depth, rgb = self._tensors(frames)
+        with torch.inference_mode():
+            out = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data)[:, 0]
+        return [self._finish(o, f.depth) for o, f in zip(out, frames)]
+
+
+class SSDDLSTMDenoiser(_SSDDBase):
+    """SSDD level 2: the LSTM-UNet over the frames of a sequence, fed the level-1 prediction."""
+
+    name = "ssdd_lstm"
+    version = "1"
+    description = "SSDD level 2: LSTM-UNet over each sequence on level-1 predictions (eq. 32); needs weights"
+    trained_as = ("ssdd_lstm",)
+    levels = 2
+    sequential = True
+
+    def start_sequence(self) -> Any:
+        return None
+
+    def _step(self, frame: FrameInput, state: Any) -> tuple[np.ndarray, Any]:
+        import torch
+
+        from methods.ssdd.model import level1_depth, level2_step
+
+        depth, rgb = self._tensors([frame])
+        with torch.inference_mode():
+            l1 = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data)
+            out, state = level2_step(self.runtime["level2"], l1, depth, rgb, self.config.level2.data, state)
+        return self._finish(out[0, 0], frame.depth), state

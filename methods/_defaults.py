@@ -21,3 +21,16 @@ def _all() -> dict:
 def swept(method: str) -> dict:
     """The swept defaults of ``method`` (a copy; the string ``"inf"`` is read as ``math.inf``)."""
     return {k: (math.inf if v == "inf" else v) for k, v in _all()[method].items()}
+
+
+#: Help text of the parameters several filters share (shown by ``depthbench methods list``).
+SHARED_HELP = {
+    "radius": "window: disk of this radius in pixels; none = ceil(2 * sigma_spatial)",
+    "depth_adaptive": "true: sigma_color grows as (z / z_ref)^2 (stereo noise)",
+    "z_ref": "depth in metres where sigma_color applies when depth_adaptive",
+}
+
+
+def shared_help(*names: str) -> dict[str, str]:
+    """``{name: help}`` of the shared parameters ``names``, in that order (for a filter's ``param_help``)."""
+    return {n: SHARED_HELP[n] for n in names}

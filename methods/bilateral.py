@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from methods._defaults import swept
+from methods._defaults import shared_help, swept
 from methods._kernels import joint_mean
 from methods.base import Denoiser, check_depth, check_flag, check_radius, check_sigma
 
@@ -113,10 +113,9 @@ class BilateralFilter(Denoiser):
     param_help = {
         "sigma_spatial": "spatial Gaussian width, pixels (eq. 7)",
         "sigma_color": "range Gaussian width, metres of depth (eq. 8); inf = off",
-        "radius": "window: disk of this radius in pixels; none = ceil(2 * sigma_spatial)",
+        **shared_help("radius"),
         "fill_holes": "true: holes get the Gaussian mean of the valid depths around them",
-        "depth_adaptive": "true: sigma_color grows as (z / z_ref)^2 (stereo noise)",
-        "z_ref": "depth in metres where sigma_color applies when depth_adaptive",
+        **shared_help("depth_adaptive", "z_ref"),
     }
 
     def check_params(self, params):

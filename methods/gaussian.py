@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from methods._defaults import swept
+from methods._defaults import shared_help, swept
 from methods._kernels import gaussian_mean
 from methods.base import Denoiser, check_depth, check_flag, check_radius, check_sigma
 
@@ -60,7 +60,7 @@ class GaussianFilter(Denoiser):
     defaults = {"sigma_spatial": None, "radius": None, "fill_holes": False, **swept(NAME)}
     param_help = {
         "sigma_spatial": "Gaussian width, pixels",
-        "radius": "window: disk of this radius in pixels; none = ceil(2 * sigma_spatial)",
+        **shared_help("radius"),
         "fill_holes": "true: holes get the Gaussian mean of the valid depths around them",
     }
 

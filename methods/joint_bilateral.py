@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from methods._defaults import swept
+from methods._defaults import shared_help, swept
 from methods._kernels import joint_mean
 from methods.base import (Denoiser, check_color, check_depth, check_flag, check_radius, check_sigma, guide_planes)
 
@@ -84,7 +84,7 @@ class JointBilateralFilter(Denoiser):
     param_help = {
         "sigma_spatial": "spatial Gaussian width, pixels",
         "sigma_color": "range Gaussian width on the colour guide, 0-255 levels (Euclidean over RGB); inf = off",
-        "radius": "window: disk of this radius in pixels; none = ceil(2 * sigma_spatial)",
+        **shared_help("radius"),
         "fill_holes": "true: holes get the colour-weighted mean of the valid depths around them",
     }
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from methods._defaults import swept
+from methods._defaults import shared_help, swept
 from methods._kernels import gaussian_mean, joint_mean
 from methods.base import Denoiser, check_depth, check_flag, check_iterations, check_radius, check_sigma
 
@@ -105,10 +105,9 @@ class RollingGuidanceFilter(Denoiser):
         "sigma_spatial": "structure scale, pixels: smaller structures are removed (eq. 9-11)",
         "sigma_color": "range width on the guide J^t, metres of depth (eq. 11)",
         "iterations": "passes including the first Gaussian one",
-        "radius": "window: disk of this radius in pixels; none = ceil(2 * sigma_spatial)",
+        **shared_help("radius"),
         "fill_holes": "true: holes get the final iterate (the filter's own estimate there)",
-        "depth_adaptive": "true: sigma_color grows as (z / z_ref)^2 (stereo noise)",
-        "z_ref": "depth in metres where sigma_color applies when depth_adaptive",
+        **shared_help("depth_adaptive", "z_ref"),
     }
 
     def check_params(self, params):

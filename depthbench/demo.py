@@ -80,20 +80,20 @@ def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
     no_report = "" if config.reports else "--no-report"
     align_opts = {"report": config.reports, **({} if config.probes is None else {"probes": config.probes})}
     return [
-        DemoStep("simulate an LQ+HQ rig",
-                 _command("capture simulate --rig lq-hq --scene people --seconds", f"{config.seconds:g}", "--seed",
-                          config.seed, scale, "--out", session, shift, f),
-                 lambda: simulate(session, rig="lq-hq", scene="people", seconds=config.seconds, seed=config.seed,
-                                  force=force, time_shift_us=shift_us, scale=config.scale, progress=config.progress),
-                 session),
-        DemoStep("align HQ onto LQ", _command("align", session, "--out", aligned, probes, no_report, f),
-                 lambda: align_session(session, aligned, force=force, progress=config.progress, **align_opts), aligned),
-        DemoStep("benchmark every method",
-                 _command("bench run --data", aligned, "--methods", config.methods, "--out", results, jobs,
-                          no_report, f),
-                 lambda: run_benchmark([aligned], config.methods, results, force=force, jobs=config.jobs,
-                                       progress=None if config.progress else False, report=config.reports),
-                 results),
+        DemoStep(name="simulate an LQ+HQ rig", output=session,
+                 command=_command("capture simulate --rig lq-hq --scene people --seconds", f"{config.seconds:g}",
+                                  "--seed", config.seed, scale, "--out", session, shift, f),
+                 call=lambda: simulate(session, rig="lq-hq", scene="people", seconds=config.seconds,
+                                       seed=config.seed, force=force, time_shift_us=shift_us, scale=config.scale,
+                                       progress=config.progress)),
+        DemoStep(name="align HQ onto LQ", output=aligned,
+                 command=_command("align", session, "--out", aligned, probes, no_report, f),
+                 call=lambda: align_session(session, aligned, force=force, progress=config.progress, **align_opts)),
+        DemoStep(name="benchmark every method", output=results,
+                 command=_command("bench run --data", aligned, "--methods", config.methods, "--out", results, jobs,
+                                  no_report, f),
+                 call=lambda: run_benchmark([aligned], config.methods, results, force=force, jobs=config.jobs,
+                                            progress=None if config.progress else False, report=config.reports)),
     ]
 
 

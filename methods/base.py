@@ -308,7 +308,8 @@ class Denoiser:
         Called by the runner before the first frame in each process; the default does nothing.
         """
 
-    def _ensure_prepared(self) -> None:
+    def ensure_prepared(self) -> None:
+        """Run :meth:`prepare` once in this process (the runner calls it before the first frame)."""
         if not self.runtime.get("_prepared"):
             self.prepare()
             self.runtime["_prepared"] = True
@@ -335,7 +336,7 @@ class Denoiser:
         if self.sequential:
             raise MethodError(f"{self.name}: a sequence method denoises frame by frame (denoise_step)")
         frames = [_checked(f) for f in frames]
-        self._ensure_prepared()
+        self.ensure_prepared()
         outs = list(self._denoise_batch(frames))
         if len(outs) != len(frames):
             raise MethodError(f"{self.name} returned {len(outs)} depth maps for a batch of {len(frames)} frames")
@@ -358,7 +359,7 @@ class Denoiser:
     def denoise_step(self, frame: FrameInput, state: Any) -> tuple[np.ndarray, Any]:
         """Sequence methods: the next frame in order -> ``(denoised depth, new state)``."""
         frame = _checked(frame)
-        self._ensure_prepared()
+        self.ensure_prepared()
         out, state = self._step(frame, state)
         return _as_output(self, frame, out), state
 

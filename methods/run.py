@@ -97,7 +97,7 @@ class FrameRunner:
         self._seen = 0
         self._pending: list[tuple[FrameInput, str]] = []
         try:
-            method._ensure_prepared()
+            method.ensure_prepared()
             self._state = method.start_sequence() if method.sequential else None
         except MethodError as exc:
             raise MethodError(f"{where}: {method.key}: {exc}") from None

@@ -209,8 +209,13 @@ def file_problem(path: str | os.PathLike) -> str | None:
     if not stat.S_ISREG(st.st_mode):
         return "not a regular file"
     if not os.access(path, os.R_OK):
-        return "cannot be read (permission denied)"
+        return "cannot be read (Permission denied)"
     return None
+
+
+def _problem_text(what: str, problem: str) -> str:
+    """``"frame file is missing"``, ``"frame file cannot be read (...)"``."""
+    return f"{what} {problem}" if problem.startswith("cannot") else f"{what} is {problem}"
 
 
 def check_frame_files(paths, *, table, error: type[Exception] = FrameError) -> int:
@@ -221,7 +226,7 @@ def check_frame_files(paths, *, table, error: type[Exception] = FrameError) -> i
     for path in paths:
         problem = file_problem(path)
         if problem:
-            raise error(f"{path}: frame file listed in {table} is {problem}")
+            raise error(f"{path}: {_problem_text(f'frame file listed in {table}', problem)}")
         n += 1
     return n
 
@@ -233,8 +238,7 @@ def read_frame_bytes(path: str | os.PathLike, *, sha256: str | None, table, what
     not a regular file, unreadable, or does not match its checksum."""
     problem = file_problem(path)
     if problem:
-        raise error(f"{path}: {what} is {problem}" if problem in ("missing", "not a regular file")
-                    else f"{path}: {what} {problem}")
+        raise error(f"{path}: {_problem_text(what, problem)}")
     try:
         with open(path, "rb") as f:
             data = f.read()

@@ -134,6 +134,16 @@ def test_unreadable_frame_files_are_one_line_errors(tmp_path):
     os.mkfifo(fifo)                     # opening a FIFO would block: it must be refused without opening
     link = tmp_path / "l.png"
     link.symlink_to(tmp_path / "nowhere.png")
+    (tmp_path / "ok.png").write_bytes(b"x")
     for path, problem in ((folder, "not a regular file"), (fifo, "not a regular file"), (link, "missing")):
         with pytest.raises(SessionFormatError, match=f"{path.name}: frame file is {problem}$"):
             codec.read_frame_bytes(path, sha256=None, table="t.csv", error=SessionFormatError)
+    with pytest.raises(SessionFormatError, match=r"a\.png: frame file listed in t\.csv is not a regular file$"):
+        codec.check_frame_files([tmp_path / "ok.png", folder], table="t.csv", error=SessionFormatError)
+
+
+def test_check_frame_files_reads_nothing_and_counts(tmp_path):
+    paths = [tmp_path / f"{i}.png" for i in range(3)]
+    for p in paths:
+        p.write_bytes(b"not even a PNG")      # content is not looked at: only presence and readability
+    assert codec.check_frame_files(paths, table="t.csv") == 3

@@ -71,13 +71,17 @@ def run(args: argparse.Namespace) -> int:
         raise AlignError(f"--workers must be at least 1, got {args.workers}")
     if args.max_features < 50:
         raise AlignError(f"--max-features must be at least 50, got {args.max_features}")
-    r = align_session(
-        args.session, args.out, force=args.force, shift_range_ms=args.shift_range_ms, shift_step_ms=args.shift_step_ms,
-        features=args.features, max_features=args.max_features, probes=args.probes, association=args.association,
-        max_dt_ms=args.max_dt_ms, residual_k=args.residual_k, time_model=args.time_model, workers=args.workers,
-        on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
-        report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
-        loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth)
+    try:
+        r = align_session(
+            args.session, args.out, force=args.force, shift_range_ms=args.shift_range_ms,
+            shift_step_ms=args.shift_step_ms, features=args.features, max_features=args.max_features,
+            probes=args.probes, association=args.association, max_dt_ms=args.max_dt_ms, residual_k=args.residual_k,
+            time_model=args.time_model, workers=args.workers,
+            on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
+            report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
+            loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth)
+    except AlignError as exc:
+        raise _with_flag(exc)
     sh = r.shift
     state = "" if sh.observable else "  (UNOBSERVABLE: placeholder, see the report)"
     print(f"aligned dataset: {r.out}")
@@ -96,3 +100,16 @@ def run(args: argparse.Namespace) -> int:
     if r.report is not None:
         print(f"  report: {r.report}")
     return 0
+
+
+#: AlignOptions fields whose flag is not ``--`` + the name with dashes
+_FLAGS = {"on_unobservable": "--allow-unobservable"}
+
+
+def _with_flag(exc):
+    """The library names the option (``exc.option``); the command line names its flag."""
+    option = getattr(exc, "option", None)
+    if option:
+        flag = _FLAGS.get(option, "--" + option.replace("_", "-"))
+        exc.args = (f"{flag}: {exc.args[0] if exc.args else ''}",) + tuple(exc.args[1:])
+    return exc

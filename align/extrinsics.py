@@ -162,9 +162,11 @@ def fit_extrinsics(points: np.ndarray, pixels: np.ndarray, K: Intrinsics, *, T_i
     full_in = np.zeros(good.shape[0], bool)
     full_in[good] = inliers
     e_in = err[inliers]
-    return ExtrinsicFit(T, full_in, full_err, int(good.sum()), int(inliers.sum()),
-                        float(np.sqrt(np.mean(e_in ** 2))) if e_in.size else float("nan"),
-                        float(np.median(e_in)) if e_in.size else float("nan"), cov, int(mask0.sum()))
+    return ExtrinsicFit(T=T, inliers=full_in, residuals_px=full_err, n_pairs=int(good.sum()),
+                        n_inliers=int(inliers.sum()),
+                        rms_px=float(np.sqrt(np.mean(e_in ** 2))) if e_in.size else float("nan"),
+                        median_px=float(np.median(e_in)) if e_in.size else float("nan"), covariance=cov,
+                        init_inliers=int(mask0.sum()))
 
 
 def _covariance(res, inlier_rows: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from align.errors import AlignError
+from align.errors import AlignError, OptionError
 from capture.camera import Intrinsics
 
 FEATURES = ("sift", "orb", "akaze")
@@ -54,7 +54,7 @@ def _detector(kind: str, max_features: int):
     if kind == "akaze":  # OpenCV 5 moved AKAZE to the contrib module
         create = getattr(cv2, "AKAZE_create", None) or cv2.xfeatures2d.AKAZE_create
         return create(threshold=5e-4)
-    raise AlignError(f"--features: unknown detector {kind!r} (choose from {', '.join(FEATURES)})")
+    raise OptionError(f"unknown feature detector {kind!r} (choose from {', '.join(FEATURES)})", option="features")
 
 
 def detect(image: np.ndarray, *, kind: str = "sift", max_features: int = 2000, mask: np.ndarray | None = None,

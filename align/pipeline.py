@@ -38,7 +38,7 @@ from tqdm import tqdm
 
 from align.association import associate, nearest_mapping, overlap_us
 from align.dataset import AlignedDatasetWriter
-from align.errors import AlignError, AssociationError, FeatureError, UnobservableError
+from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
 from align.features import FEATURES, detect, lift, match, track
 from align.residuals import depth_residual, outliers, robust_summary
@@ -99,21 +99,24 @@ class AlignOptions:
 
             BoardSpec.parse(self.board)
         if not self.shift_range_ms > 0:
-            raise AlignError(f"--shift-range-ms must be positive, got {self.shift_range_ms:g}")
+            raise OptionError(f"shift range must be positive, got {self.shift_range_ms:g} ms", option="shift_range_ms")
         if not 0 < self.shift_step_ms <= self.shift_range_ms:
-            raise AlignError(f"--shift-step-ms must be in (0, {self.shift_range_ms:g}], got {self.shift_step_ms:g}")
+            raise OptionError(f"shift step must be in (0, {self.shift_range_ms:g}] ms, got {self.shift_step_ms:g} ms",
+                              option="shift_step_ms")
         if self.features not in FEATURES:
-            raise AlignError(f"--features must be one of {', '.join(FEATURES)}, got {self.features!r}")
+            raise OptionError(f"feature detector must be one of {', '.join(FEATURES)}, got {self.features!r}",
+                              option="features")
         if self.association not in ("nearest", "greedy"):
-            raise AlignError(f"--association must be nearest or greedy, got {self.association!r}")
+            raise OptionError(f"association must be nearest or greedy, got {self.association!r}", option="association")
         if self.probes < 3:
-            raise AlignError(f"--probes must be at least 3, got {self.probes}")
+            raise OptionError(f"probes must be at least 3, got {self.probes}", option="probes")
         if self.max_dt_ms is not None and not self.max_dt_ms > 0:
-            raise AlignError(f"--max-dt-ms must be positive, got {self.max_dt_ms:g}")
+            raise OptionError(f"largest pair time difference must be positive, got {self.max_dt_ms:g} ms", option="max_dt_ms")
         if self.time_model not in ("constant", "linear"):
-            raise AlignError(f"--time-model must be constant or linear, got {self.time_model!r}")
+            raise OptionError(f"time model must be constant or linear, got {self.time_model!r}", option="time_model")
         if self.on_unobservable not in ("error", "flag"):
-            raise AlignError(f"on_unobservable must be 'error' or 'flag', got {self.on_unobservable!r}")
+            raise OptionError(f"on_unobservable must be 'error' or 'flag', got {self.on_unobservable!r}",
+                              option="on_unobservable")
 
 
 # --------------------------------------------------------------------------------------- geometry
@@ -216,10 +219,12 @@ def pair_setup(session: Session, *, lq: str, hq: str, dejitter: bool = True) -> 
             raise AlignError(f"{where}: sensor {sid!r} has colour and depth but no T_depth_color (its own calibration)")
         return T
 
-    return PairSetup(session, lq, hq, lqd, lqc, hqd, hqc, session.intrinsics(lq, lqd), session.intrinsics(lq, lqc),
-                     session.intrinsics(hq, hqd), session.intrinsics(hq, hqc), T_depth_color(lq), T_depth_color(hq),
-                     t_lq, f_lq, t_lq_c, f_lq_c, t_hq, f_hq, t_hq_c, f_hq_c, col, float(np.median(np.diff(t_lq))),
-                     clocks)
+    return PairSetup(session=session, lq=lq, hq=hq, lq_depth=lqd, lq_color=lqc, hq_depth=hqd, hq_color=hqc,
+                     K_lq=session.intrinsics(lq, lqd), K_lq_color=session.intrinsics(lq, lqc),
+                     K_hq=session.intrinsics(hq, hqd), K_hq_color=session.intrinsics(hq, hqc),
+                     T_lqdepth_lqcolor=T_depth_color(lq), T_hqdepth_hqcolor=T_depth_color(hq),
+                     t_lq=t_lq, f_lq=f_lq, t_lq_c=t_lq_c, f_lq_c=f_lq_c, t_hq=t_hq, f_hq=f_hq, t_hq_c=t_hq_c,
+                     f_hq_c=f_hq_c, hq_color_of_depth=col, lq_period_us=float(np.median(np.diff(t_lq))), clocks=clocks)
 
 
 # --------------------------------------------------------------------------------------- probes
@@ -257,7 +262,8 @@ class ProbeBuilder:
         X = s.T_hqdepth_hqcolor.apply(lift(fh.xy, d_col, s.K_hq_color))
         ok = np.all(np.isfinite(X), axis=1)
         if ok.sum() < 2:
-            return Probe(i, t, np.empty((0, 3)), s.f_lq_c[win], s.t_lq_c[win], np.empty((win.size, 0, 2)), anchor)
+            return Probe(hq_index=i, t_hq_us=t, points=np.empty((0, 3)), lq_index=s.f_lq_c[win], t_lq_us=s.t_lq_c[win],
+                         tracks=np.empty((win.size, 0, 2)), anchor=anchor)
         fh = type(fh)(fh.xy[ok], fh.descriptors[ok], fh.kind)
         X = X[ok]
         greys, rgb_anchor = [], None
@@ -270,7 +276,8 @@ class ProbeBuilder:
                     scale=_detect_scale(rgb_anchor, o.detect_scale))
         ia, ib = match(fh, fl)
         tracks = track(greys, anchor, fl.xy[ib])
-        return Probe(i, t, X[ia], win, s.t_lq_c[win], tracks, anchor)
+        return Probe(hq_index=i, t_hq_us=t, points=X[ia], lq_index=win, t_lq_us=s.t_lq_c[win], tracks=tracks,
+                     anchor=anchor)
 
 
 def _detect_scale(image: np.ndarray, scale: float | None) -> float:
@@ -358,7 +365,8 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
     good = np.all(np.isfinite(pos), axis=1)
     fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init)
     T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
-    pf = PairFit(setup, shift, fit, T_lq_hq, probes, fit.residuals_px, n_cand, time.perf_counter() - t_start)
+    pf = PairFit(setup=setup, shift=shift, fit=fit, T_lq_hq=T_lq_hq, probes=probes, feature_residuals_px=fit.residuals_px,
+                 candidates=n_cand, seconds=time.perf_counter() - t_start)
     if opts.board is not None:
         pf.T_lq_hq, pf.board = calibrate_with_board(setup, opts, pf.time_shift_at)
         pf.seconds = time.perf_counter() - t_start
@@ -452,7 +460,8 @@ def pair_frames(setup: PairSetup, pf: PairFit, opts: AlignOptions) -> PairTable:
             best[j] = other if loser == i else i
         else:
             best[j] = int(i)
-    return PairTable(np.arange(setup.t_hq.size), lq_of, dt, np.full(setup.t_hq.size, np.nan), reason)
+    return PairTable(hq_index=np.arange(setup.t_hq.size), lq_index=lq_of, dt_us=dt,
+                     residual=np.full(setup.t_hq.size, np.nan), reason=reason)
 
 
 # --------------------------------------------------------------------------------------- truth
@@ -552,7 +561,8 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
         raise
     if report is not None:
         report = Path(root) / "report.md"
-    return PairOutput(Path(root), table, meta["residuals"]["depth"], report, int(kept.size), example)
+    return PairOutput(root=Path(root), table=table, depth_residuals=meta["residuals"]["depth"], report=report,
+                      kept=int(kept.size), example=example)
 
 
 def _lq_depth(sess, setup: PairSetup, pf: PairFit, j: int) -> np.ndarray:
@@ -672,8 +682,9 @@ def align_session(session, out, *, force: bool = False, lq: str | None = None, h
         close_loop(setup, pf, correct_depth=opts.loop_correct_depth).apply(pf)
     truth = TruthSource(sess.root, lq) if opts.attach_truth and TruthSource.available(sess.root) else None
     po = write_pair_dataset(out, setup, pf, opts, force=force, truth=truth)
-    return AlignmentResult(out, int(round(pf.shift.time_shift_us)), pf.T_lq_hq, pf.shift, pf.fit, po.kept,
-                           po.table.counts(), po.report, {lq: pf}, None, time.perf_counter() - t0)
+    return AlignmentResult(out=out, time_shift_us=int(round(pf.shift.time_shift_us)), T_lq_hq=pf.T_lq_hq,
+                           shift=pf.shift, fit=pf.fit, kept=po.kept, dropped=po.table.counts(), report=po.report,
+                           views={lq: pf}, rig=None, seconds=time.perf_counter() - t0)
 
 
 def _only(sess: Session, role: str) -> str:
@@ -715,6 +726,7 @@ def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOpti
     first = views[0] if views[0] != reference else views[-1]
     pf = fits[first]
     dropped = {v: o.table.counts() for v, o in outputs.items()}
-    return AlignmentResult(out, int(round(pf.shift.time_shift_us)), pf.T_lq_hq, pf.shift, pf.fit,
-                           sum(o.kept for o in outputs.values()), dropped, out / "report.md" if opts.report else None,
-                           fits, rig, time.perf_counter() - t0)
+    return AlignmentResult(out=out, time_shift_us=int(round(pf.shift.time_shift_us)), T_lq_hq=pf.T_lq_hq,
+                           shift=pf.shift, fit=pf.fit, kept=sum(o.kept for o in outputs.values()), dropped=dropped,
+                           report=out / "report.md" if opts.report else None, views=fits, rig=rig,
+                           seconds=time.perf_counter() - t0)

@@ -11,6 +11,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from align.errors import ShapeError
+
 
 def background_depth(depths, *, percentile: float = 90.0, min_count: int = 3) -> np.ndarray:
     """Per-pixel background depth ``(H, W)`` float32 metres from frames ``(K, H, W)`` (NaN = none).
@@ -20,7 +22,7 @@ def background_depth(depths, *, percentile: float = 90.0, min_count: int = 3) ->
     """
     stack = np.asarray(depths, dtype=np.float32)
     if stack.ndim != 3:
-        raise ValueError(f"depths must be (K, H, W), got shape {stack.shape}")
+        raise ShapeError(f"depths must be (K, H, W), got shape {stack.shape}")
     count = np.isfinite(stack).sum(axis=0)
     with np.errstate(invalid="ignore"), _quiet():
         bg = np.nanpercentile(stack, percentile, axis=0).astype(np.float32)
@@ -49,7 +51,7 @@ def foreground_mask(depth: np.ndarray, background: np.ndarray, *, margin_m: floa
     d = np.asarray(depth, np.float32)
     bg = np.asarray(background, np.float32)
     if d.shape != bg.shape:
-        raise ValueError(f"depth {d.shape} and background {bg.shape} differ in shape")
+        raise ShapeError(f"depth {d.shape} and background {bg.shape} differ in shape")
     with np.errstate(invalid="ignore"):
         fg = (d > 0) & (d < bg - np.maximum(margin_m, margin_rel * bg))
     m = fg.astype(np.uint8)

@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from align.errors import AlignError, AssociationError, ShiftRangeError, UnobservableError
+from align.errors import AssociationError, OptionError, ShiftRangeError, UnobservableError
 from align.extrinsics import fit_extrinsics
 from capture.camera import Intrinsics, Transform
 
@@ -321,44 +321,27 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
         declared_shift_us: declared Delta (used as given: no search, the loss is still scanned).
         max_std_us, min_moving, moving_px: the observability test.
     Raises:
-        UnobservableError: static scene / no moving features / too uncertain.
-        ShiftRangeError: the minimum lies on the edge of the range.
+        UnobservableError: static scene / no moving features / too uncertain (``estimate`` attached).
+        ShiftRangeError: the minimum lies on the edge of the range (``estimate`` attached).
         AssociationError: no probe has LQ frames around it for the whole range.
     """
     if model not in ("constant", "linear"):
-        raise AlignError(f"time model must be 'constant' or 'linear', got {model!r}")
+        raise OptionError(f"time model must be 'constant' or 'linear', got {model!r}", option="time_model")
     lo, hi = float(range_us[0]), float(range_us[1])
     if not hi > lo:
-        raise AlignError(f"shift range is empty: [{lo:.0f}, {hi:.0f}] us")
+        raise OptionError(f"shift range is empty: [{lo:.0f}, {hi:.0f}] us", option="shift_range_ms")
     probes = [p for p in probes if p.n_features > 0 and p.tracks.shape[0] >= 2]
     if not probes:
         raise AssociationError("no HQ frame has LQ frames around it for the whole shift range: "
                                "the streams do not overlap in time (or are too short for the range)")
-    if T_init is None:  # PnP + RANSAC on the anchor pairs of features that do not move (if enough)
-        X, px, still = [], [], []
-        for p in probes:
-            X.append(p.points)
-            px.append(p.tracks[p.anchor])
-            span = np.nanmax(p.tracks, axis=0) - np.nanmin(p.tracks, axis=0)
-            still.append(np.all(np.isfinite(p.tracks), axis=(0, 2)) & (np.linalg.norm(span, axis=1) < STATIC_PX))
-        X, px, still = np.concatenate(X), np.concatenate(px), np.concatenate(still)
-        use = still if still.sum() >= MIN_STATIC else np.ones(X.shape[0], bool)
-        T_init = fit_extrinsics(X[use], px[use], K_lq_color, inlier_px=inlier_px).T
+    if T_init is None:
+        T_init = _initial_transform(probes, K_lq_color, inlier_px=inlier_px)
     loss = ShiftLoss(probes, T_init, K_lq_color, scale_px=scale_px, t0_us=t0_us)
     b = 0.0 if drift_ppm is None else drift_ppm * 1e-6
-    n_probes = len(set(loss.probe_id.tolist()))
-    log.debug("shift search: %d probes, %d features tracked through their windows", n_probes, len(loss))
-
+    log.debug("shift search: %d probes, %d features tracked through their windows", _n_probes(loss), len(loss))
     if declared_shift_us is not None:
-        a = float(declared_shift_us)
-        grid = np.arange(lo, hi + step_us / 2, step_us)
-        vals = np.array([loss(g, b) for g in grid])
-        loss.set_transform(_refine_T(loss, a, b, inlier_px=inlier_px))
-        std, n_moving, _ = _information(loss, a, b, moving_px=moving_px)
-        return ShiftEstimate(a, std, True, "declared", b * 1e6, int(loss.t0), grid, vals, loss.T, n_probes,
-                             len(loss), n_moving, "declared in session.json (clock_facts.time_shift_us)",
-                             loss.evaluations, range_us=(int(lo), int(hi)))
-
+        return _declared_estimate(loss, float(declared_shift_us), b, range_us=(lo, hi), step_us=step_us,
+                                  inlier_px=inlier_px, moving_px=moving_px)
     a, grid, vals = _search_constant(loss, lo, hi, step_us, b)
     for it in range(max(iterations - 1, 0)):
         # first with T_ex from the static features alone (decoupled from Delta), then, Delta being
@@ -367,42 +350,81 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
         a, grid, vals = _search_constant(loss, lo, hi, step_us, b)
     segments = _segments(loss, a, b, step_us)
     if model == "linear" and drift_ppm is None:
-        res = minimize(lambda x: loss(x[0], x[1] * 1e-6), x0=[a, _slope_ppm(segments, loss.t0)], method="Nelder-Mead",
-                       options={"xatol": 0.5, "fatol": 1e-9, "initial_simplex": [[a, 0.0], [a + 500, 0.0],
-                                                                              [a, 20.0]]})
-        a, b = float(res.x[0]), float(res.x[1]) * 1e-6
-        loss.set_transform(_refine_T(loss, a, b, inlier_px=inlier_px))
-        res = minimize(lambda x: loss(x[0], x[1] * 1e-6), x0=[a, b * 1e6], method="Nelder-Mead",
-                       options={"xatol": 0.2, "fatol": 1e-10})
-        a, b = float(res.x[0]), float(res.x[1]) * 1e-6
-    std, n_moving, sigma = _information(loss, a, b, moving_px=moving_px)
+        a, b = _fit_drift(loss, a, segments, inlier_px=inlier_px)
+    std_feat, n_moving, _ = _information(loss, a, b, moving_px=moving_px)
     # features of one probe share errors (T_ex, the motion of one limb, tracking on a deforming
     # surface): the scatter of the per-probe estimates gives an honest standard error where the
     # per-feature statistics alone would claim too much
-    std_feat = std
-    std = max(std, _probe_scatter(loss, a, b, step_us))
-    edge = min(a - lo, hi - a) < 0.25 * step_us
-    used_model = model if drift_ppm is None else "constant+declared drift"
-    est = ShiftEstimate(a, std, True, used_model, b * 1e6, int(loss.t0), grid, vals, loss.T, n_probes, len(loss),
-                        n_moving, "", loss.evaluations, segments, (int(lo), int(hi)))
+    std = max(std_feat, _probe_scatter(loss, a, b, step_us))
+    est = ShiftEstimate(time_shift_us=a, std_us=std, observable=True,
+                        model=model if drift_ppm is None else "constant+declared drift", drift_ppm=b * 1e6,
+                        t0_us=int(loss.t0), grid_us=grid, grid_loss=vals, T_init=loss.T, n_probes=_n_probes(loss),
+                        n_features=len(loss), n_moving=n_moving, reason="", evaluations=loss.evaluations,
+                        segments=segments, range_us=(int(lo), int(hi)))
     log.debug("shift %.0f us +- %.0f us from %d moving of %d features (%d loss evaluations)", a, std, n_moving,
-             len(loss), loss.evaluations)
-    static = n_moving < min_moving
-    if edge and not static:
+              len(loss), loss.evaluations)
+    _check_observable(est, std_feat=std_feat, step_us=step_us, max_std_us=max_std_us, min_moving=min_moving)
+    return est
+
+
+def _n_probes(loss: ShiftLoss) -> int:
+    return len(set(loss.probe_id.tolist()))
+
+
+def _initial_transform(probes: list[Probe], K: Intrinsics, *, inlier_px: float) -> Transform:
+    """PnP + RANSAC on the anchor pairs, of the features that do not move if there are enough."""
+    X, px, still = [], [], []
+    for p in probes:
+        X.append(p.points)
+        px.append(p.tracks[p.anchor])
+        span = np.nanmax(p.tracks, axis=0) - np.nanmin(p.tracks, axis=0)
+        still.append(np.all(np.isfinite(p.tracks), axis=(0, 2)) & (np.linalg.norm(span, axis=1) < STATIC_PX))
+    X, px, still = np.concatenate(X), np.concatenate(px), np.concatenate(still)
+    use = still if still.sum() >= MIN_STATIC else np.ones(X.shape[0], bool)
+    return fit_extrinsics(X[use], px[use], K, inlier_px=inlier_px).T
+
+
+def _declared_estimate(loss: ShiftLoss, a: float, b: float, *, range_us: tuple[float, float], step_us: int,
+                       inlier_px: float, moving_px: float) -> ShiftEstimate:
+    """Delta as declared in the session: no search; the loss is still scanned (for the report)."""
+    lo, hi = range_us
+    grid = np.arange(lo, hi + step_us / 2, step_us)
+    vals = np.array([loss(g, b) for g in grid])
+    loss.set_transform(_refine_T(loss, a, b, inlier_px=inlier_px))
+    std, n_moving, _ = _information(loss, a, b, moving_px=moving_px)
+    return ShiftEstimate(time_shift_us=a, std_us=std, observable=True, model="declared", drift_ppm=b * 1e6,
+                         t0_us=int(loss.t0), grid_us=grid, grid_loss=vals, T_init=loss.T, n_probes=_n_probes(loss),
+                         n_features=len(loss), n_moving=n_moving,
+                         reason="declared in session.json (clock_facts.time_shift_us)",
+                         evaluations=loss.evaluations, range_us=(int(lo), int(hi)))
+
+
+def _fit_drift(loss: ShiftLoss, a: float, segments, *, inlier_px: float) -> tuple[float, float]:
+    """The linear model's ``(a, b)``: Nelder-Mead from the segments' slope, T_ex refitted, again."""
+    res = minimize(lambda x: loss(x[0], x[1] * 1e-6), x0=[a, _slope_ppm(segments, loss.t0)], method="Nelder-Mead",
+                   options={"xatol": 0.5, "fatol": 1e-9, "initial_simplex": [[a, 0.0], [a + 500, 0.0], [a, 20.0]]})
+    a, b = float(res.x[0]), float(res.x[1]) * 1e-6
+    loss.set_transform(_refine_T(loss, a, b, inlier_px=inlier_px))
+    res = minimize(lambda x: loss(x[0], x[1] * 1e-6), x0=[a, b * 1e6], method="Nelder-Mead",
+                   options={"xatol": 0.2, "fatol": 1e-10})
+    return float(res.x[0]), float(res.x[1]) * 1e-6
+
+
+def _check_observable(est: ShiftEstimate, *, std_feat: float, step_us: float, max_std_us: float,
+                      min_moving: int) -> None:
+    """Raise (with the estimate attached, marked unobservable) when the edge or the motion says so."""
+    a, (lo, hi) = est.time_shift_us, est.range_us
+    static = est.n_moving < min_moving
+    if min(a - lo, hi - a) < 0.25 * step_us and not static:
         est.observable = False
         est.reason = (f"the best shift {a / 1000:.1f} ms lies on the edge of the search range "
                       f"[{lo / 1000:.0f}, {hi / 1000:.0f}] ms; the true shift may lie outside it")
-        err = ShiftRangeError(f"{est.reason}: widen --shift-range-ms")
-        err.estimate = est
-        raise err
+        raise ShiftRangeError(f"{est.reason}: widen the search range", estimate=est, option="shift_range_ms")
     if static or not std_feat <= max_std_us:
         est.observable = False
-        est.reason = (f"only {n_moving} features move (need {min_moving}); the motion determines the shift to "
+        est.reason = (f"only {est.n_moving} features move (need {min_moving}); the motion determines the shift to "
                       f"{std_feat:.0f} us (limit {max_std_us:.0f} us): the scene is static or nearly so")
-        err = UnobservableError(f"time shift unobservable: {est.reason}")
-        err.estimate = est
-        raise err
-    return est
+        raise UnobservableError(f"time shift unobservable: {est.reason}", estimate=est)
 
 
 def _probe_scatter(loss: ShiftLoss, a: float, b: float, step_us: float) -> float:

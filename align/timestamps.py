@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from align.errors import ShapeError
+
 
 @dataclass(frozen=True)
 class Regularized:
@@ -74,7 +76,7 @@ def regularize(frame_numbers, stamps_us, *, window: int = 61, max_rms_us: float 
     f = np.asarray(frame_numbers, np.int64)
     t = np.asarray(stamps_us, np.int64)
     if f.shape != t.shape:
-        raise ValueError(f"frame numbers {f.shape} and stamps {t.shape} differ in shape")
+        raise ShapeError(f"frame numbers {f.shape} and stamps {t.shape} differ in shape")
     if t.size < 8 or np.any(np.diff(f) <= 0):
         period = float(np.median(np.diff(t))) if t.size > 1 else 0.0
         return Regularized(t.copy(), t, "raw", 0.0, period)

@@ -154,7 +154,9 @@ class _TaskScorer:
                                              min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio,
                                              threads=self.threads)
                   for name, ref in refs.items()}
-        self.held[fr.index] = held = _Scoring(fr, refs, planes, waiting)
+        held = _Scoring(frame=fr, refs=refs, planes=planes, waiting=waiting)
+        if waiting:      # released when the last awaited output is scored
+            self.held[fr.index] = held
         return held
 
     def score(self, method, frame: int, pred: np.ndarray | None, refs: dict | None = None) -> None:
@@ -204,14 +206,13 @@ def compute_frame(task: FrameTask) -> FrameOutput:
                 runners[m.key].push(read_input(ds, i, m))
         for i in task.frames:
             fr = ds.frame(i)
-            held = scorer.hold(fr, waiting=len(methods) + len(hq_sensor))
-            for m in hq_sensor:     # the reference itself, against the truth where the frame has one
-                if "truth" in held.refs:
-                    scorer.score(m, i, fr.reference, refs={"truth": held.refs["truth"]})
-                else:
-                    held.waiting -= 1
+            sensors = hq_sensor if fr.truth is not None else []   # the reference itself, against the truth
+            held = scorer.hold(fr, waiting=len(methods) + len(sensors))
+            for m in sensors:
+                scorer.score(m, i, fr.reference, refs={"truth": held.refs["truth"]})
+            frame = FrameInput(index=i, depth=fr.lq_depth, color=fr.lq_color, camera=ds.lq_intrinsics)
             for m in methods:
-                _score_all(scorer, m, runners[m.key].push(FrameInput(i, fr.lq_depth, fr.lq_color, ds.lq_intrinsics)))
+                _score_all(scorer, m, runners[m.key].push(frame))
         for m in methods:
             _score_all(scorer, m, runners[m.key].finish())
     return scorer.out

@@ -326,7 +326,7 @@ class Denoiser:
 
         A sequence method denoises the frame as a sequence of one frame.
         """
-        frame = FrameInput(0, depth, color, camera)
+        frame = FrameInput(index=0, depth=depth, color=color, camera=camera)
         if self.sequential:
             return self.denoise_step(frame, self.start_sequence())[0]
         return self.denoise_batch([frame])[0]
@@ -380,7 +380,7 @@ class Denoiser:
 
 def _checked(frame: FrameInput) -> FrameInput:
     depth = check_depth(frame.depth)
-    return FrameInput(frame.index, depth, check_color(frame.color, depth), frame.camera)
+    return FrameInput(index=frame.index, depth=depth, color=check_color(frame.color, depth), camera=frame.camera)
 
 
 def _as_output(method: Denoiser, frame: FrameInput, out: Any) -> np.ndarray:

@@ -24,6 +24,7 @@ What happens to a frame (one rule for every caller):
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import time
@@ -71,7 +72,7 @@ def plan_chunks(method: Denoiser, n_frames: int) -> list[Chunk]:
         size, warm = int(needs.batch_size), 0
     if size < 1:
         raise MethodError(f"{method.name}: chunk and batch sizes must be at least 1, got {size}")
-    return [Chunk(tuple(range(s, min(s + size, n_frames))), tuple(range(max(0, s - warm), s)))
+    return [Chunk(frames=tuple(range(s, min(s + size, n_frames))), warmup=tuple(range(max(0, s - warm), s)))
             for s in range(0, n_frames, size)]
 
 
@@ -103,6 +104,8 @@ class FrameRunner:
             raise MethodError(f"{where}: {method.key}: {exc}") from None
 
     def push(self, frame: FrameInput) -> list[DenoisedFrame]:
+        if frame.color is not None and not self.method.uses_color:   # every caller gives a method the same inputs
+            frame = dataclasses.replace(frame, color=None)
         warm = self._seen < self._warmup
         self._seen += 1
         status = frame_status(self.method, frame)
@@ -135,13 +138,13 @@ class FrameRunner:
 def _result(frame: FrameInput, status: str, out: np.ndarray | None) -> DenoisedFrame:
     if status == EMPTY:
         out = np.full(frame.depth.shape, np.nan, np.float32)
-    return DenoisedFrame(frame.index, out, status)
+    return DenoisedFrame(index=frame.index, depth=out, status=status)
 
 
 def read_input(dataset, index: int, method: Denoiser) -> FrameInput:
     """Frame ``index`` of an aligned dataset as ``method`` needs it (colour only when it uses colour)."""
     color = dataset.lq_color(index) if method.uses_color else None
-    return FrameInput(index, dataset.lq_depth(index), color, dataset.lq_intrinsics)
+    return FrameInput(index=index, depth=dataset.lq_depth(index), color=color, camera=dataset.lq_intrinsics)
 
 
 def iter_dataset(method: Denoiser, dataset, *, progress: bool | None = None) -> Iterator[DenoisedFrame]:
@@ -219,5 +222,5 @@ def denoise_dataset(method: Denoiser, data, out: str | os.PathLike, *, force: bo
     except BaseException as exc:
         writer.abort(exc)
         raise
-    return DenoiseResult(Path(root), method.key, len(dataset), empty, seconds)
+    return DenoiseResult(out=Path(root), method_key=method.key, frames=len(dataset), empty=empty, seconds=seconds)
 

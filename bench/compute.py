@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from align.dataset import AlignedDataset, AlignedFrame
-from bench.errors import BenchError, MethodOutputError, MethodRunError  # noqa: F401 (re-exported)
+from bench.errors import BenchError
 from bench.metrics import BINNED, UNITS, MetricConfig, fit_reference_planes, frame_metrics
 from bench.results import SCHEMA_VERSION
 from methods.base import FrameInput, MethodNeeds

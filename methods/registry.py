@@ -11,6 +11,8 @@ from typing import Any
 
 from methods.base import Denoiser
 from methods.bilateral import BilateralFilter
+from methods.ddd.method import DDD
+from methods.ddrnet.method import DDRNetDenoise, DDRNetRefine
 from methods.errors import MethodError, UnknownMethodError
 from methods.gaussian import GaussianFilter
 from methods.joint_bilateral import JointBilateralFilter
@@ -20,7 +22,8 @@ from methods.ssdd.denoise import SSDDLSTMDenoiser, SSDDUNetDenoiser
 
 #: Built-in methods, in listing order.
 BUILTIN: tuple[type[Denoiser], ...] = (Raw, GaussianFilter, BilateralFilter, JointBilateralFilter,
-                                       RollingGuidanceFilter, SSDDUNetDenoiser, SSDDLSTMDenoiser)
+                                       RollingGuidanceFilter, DDRNetDenoise, DDD, SSDDUNetDenoiser, SSDDLSTMDenoiser,
+                                       DDRNetRefine)
 
 #: The seed report's abbreviations (Table I), accepted wherever a method name is.
 ALIASES = {"bf": "bilateral", "jbf": "joint_bilateral", "rgf": "rolling_guidance"}

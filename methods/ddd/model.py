@@ -81,15 +81,12 @@ def multiview_loss(net: DDDNet, batch: dict, cfg: LossConfig, module: DDDLoss) -
 
 
 def batch_loss(cfg: LossConfig):
-    """``loss(net, batch) -> scalar`` for :class:`methods.nn.trainer.FitJob`; terms of the last call in ``loss.terms``."""
+    """``loss(net, batch) -> (scalar, {term: value})`` for :class:`methods.nn.trainer.FitJob` (eq. 22)."""
     module = cfg.module()
 
-    def loss(net, batch: dict) -> torch.Tensor:
-        total, terms = multiview_loss(net, batch, cfg, module)
-        loss.terms = terms
-        return total
+    def loss(net, batch: dict):
+        return multiview_loss(net, batch, cfg, module)
 
-    loss.terms = {}
     return loss
 
 

@@ -4,7 +4,10 @@ A batch (``methods.nn.data.AlignedSamples``, single frames) holds ``lq_depth`` (
 ``reference`` (the warped HQ depth: ``D_ref``), ``color`` (the LQ colour image, grey = Rec. 601
 luminance in ``[0, 1]``: the ``I`` of the shading loss), ``roi`` (the foreground mask ``W`` of the
 paper) and ``camera`` (``fx, fy, cx, cy`` of the crop). Losses are taken over
-``W & valid reference & measured input``; see :mod:`methods.ddrnet.losses` for the terms.
+``W & valid reference & measured input & |D_in - D_ref| < max_ref_diff_m``: like the released
+code's ``diff_thres``, the last condition drops pixels where the warped reference sees another
+surface than the LQ sensor (occlusions of the warp, mixed pixels), which would otherwise dominate
+the L2 terms with metre-sized "errors". See :mod:`methods.ddrnet.losses` for the terms.
 """
 from __future__ import annotations
 
@@ -35,7 +38,8 @@ class ModelConfig:
 @dataclass
 class LossConfig:
     """The lambdas of eq. 13-20 (see :class:`methods.ddrnet.losses.DDRNetWeights`), the albedo
-    choice (``ratio`` or ``uniform``) and ``released_terms`` (drop eq. 12 and 19 as the released code)."""
+    choice (``ratio`` or ``uniform``), ``released_terms`` (drop eq. 12 and 19 as the released code) and
+    ``max_ref_diff_m`` (pixels whose reference differs more from the input are left out; 0: keep all)."""
 
     rec: float = 1.0
     dot: float = 30.0
@@ -46,11 +50,12 @@ class LossConfig:
     lam: float = 1.0
     albedo: str = "ratio"
     released_terms: bool = False
+    max_ref_diff_m: float = 0.3
 
     def __post_init__(self) -> None:
         if self.albedo not in ALBEDOS:
             raise ValueError(f"loss.albedo must be one of {', '.join(ALBEDOS)}, got {self.albedo!r}")
-        for k in ("rec", "dot", "sh", "grad", "fid", "smo", "lam"):
+        for k in ("rec", "dot", "sh", "grad", "fid", "smo", "lam", "max_ref_diff_m"):
             if getattr(self, k) < 0:
                 raise ValueError(f"loss.{k} must be >= 0, got {getattr(self, k)}")
 
@@ -85,21 +90,19 @@ def _frame(batch: dict, key: str) -> torch.Tensor:
 
 
 def batch_loss(loss_cfg: LossConfig, *, d_min: float, d_max: float):
-    """``loss(net, batch) -> scalar`` for :class:`methods.nn.trainer.FitJob` (eq. 20); the terms of
-    the last call are kept in ``loss.terms``."""
+    """``loss(net, batch) -> (scalar, {term: value})`` for :class:`methods.nn.trainer.FitJob` (eq. 20)."""
     module = loss_cfg.module()
 
     def loss(net: DDRNet, batch: dict) -> torch.Tensor:
         depth, ref = _frame(batch, "lq_depth"), _frame(batch, "reference")
         grey = grey_of(_frame(batch, "color"))
         mask = (_frame(batch, "roi") > 0.5) & torch.isfinite(ref) & torch.isfinite(depth)
+        if loss_cfg.max_ref_diff_m > 0:
+            mask = mask & ((depth - ref).abs() < loss_cfg.max_ref_diff_m)
         inner = net.module if hasattr(net, "module") else net
         dn, dt = run_metres(net, depth, grey if inner.refine is not None else None, d_min=d_min, d_max=d_max)
-        total, terms = module(d_dn=dn, d_dt=dt, ref=torch.nan_to_num(ref, nan=0.0), mask=mask,
-                              K=batch["camera"].to(depth.dtype), grey=grey)
-        loss.terms = terms
-        return total
+        return module(d_dn=dn, d_dt=dt, ref=torch.nan_to_num(ref, nan=0.0), mask=mask,
+                      K=batch["camera"].to(depth.dtype), grey=grey)
 
-    loss.terms = {}
     return loss
 

@@ -60,7 +60,7 @@ class Trainer:
 
 _TRAINERS: dict[str, Trainer] = {}
 #: Modules that register trainers (imported by :func:`trainers`; add yours here).
-TRAINER_MODULES = ("methods.ssdd.train",)
+TRAINER_MODULES = ("methods.ssdd.train", "methods.ddrnet.train", "methods.ddd.train")
 
 
 def register_trainer(trainer: Trainer) -> Trainer:

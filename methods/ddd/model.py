@@ -92,7 +92,7 @@ def batch_loss(cfg: LossConfig):
 
 @torch.no_grad()
 def denoise_metres(net: DDDNet, depth: torch.Tensor) -> torch.Tensor:
-    """Inference: depth ``(B, 1, H, W)`` metres with NaN holes -> denoised depth, NaN where the input had none."""
+    """Inference: depth ``(B, 1, H, W)`` metres with NaN holes -> denoised depth at every pixel (the
+    partial convolutions' estimate in holes; callers keep holes as holes unless they want it)."""
     valid = torch.isfinite(depth) & (depth > 0)
-    out = net(torch.where(valid, depth, torch.zeros_like(depth)), valid.to(depth.dtype))
-    return torch.where(valid, out, torch.full_like(out, float("nan")))
+    return net(torch.where(valid, depth, torch.zeros_like(depth)), valid.to(depth.dtype))

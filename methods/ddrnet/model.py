@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import torch
+import torch.nn.functional as F
 
 from methods.ddrnet.losses import ALBEDOS, DDRNetLoss, DDRNetWeights
 from methods.ddrnet.nets import DDRNet, denormalise_depth, normalise_depth
@@ -39,7 +40,9 @@ class ModelConfig:
 class LossConfig:
     """The lambdas of eq. 13-20 (see :class:`methods.ddrnet.losses.DDRNetWeights`), the albedo
     choice (``ratio`` or ``uniform``), ``released_terms`` (drop eq. 12 and 19 as the released code) and
-    ``max_ref_diff_m`` (pixels whose reference differs more from the input are left out; 0: keep all)."""
+    ``max_ref_diff_m`` (pixels whose reference differs more from the input are left out; 0: keep all),
+    ``foreground_only`` (losses inside the foreground mask ``W`` as the paper; false: every pixel with a
+    reference, more signal per crop when the foreground is small)."""
 
     rec: float = 1.0
     dot: float = 30.0
@@ -51,6 +54,7 @@ class LossConfig:
     albedo: str = "ratio"
     released_terms: bool = False
     max_ref_diff_m: float = 0.3
+    foreground_only: bool = True
 
     def __post_init__(self) -> None:
         if self.albedo not in ALBEDOS:
@@ -74,10 +78,30 @@ def grey_of(color: torch.Tensor) -> torch.Tensor:
     return (color * w).sum(dim=1, keepdim=True)
 
 
+def fill_holes(depth: torch.Tensor, *, steps: int = 8) -> torch.Tensor:
+    """Holes (NaN or <= 0) filled from their measured neighbours: each step fills the hole pixels
+    that touch a measured or filled pixel with the mean of those in their 3x3 window (a front moving
+    one pixel per step); what is left after ``steps`` gets the image's mean depth. The released code
+    feeds the network hole-filled depth too (its ``depth_filled`` input); filled values only steer
+    the convolutions near holes, they are never scored."""
+    valid = torch.isfinite(depth) & (depth > 0)
+    m = valid.to(depth.dtype)
+    d = torch.where(valid, depth, torch.zeros_like(depth))
+    for _ in range(steps):
+        num = F.avg_pool2d(d * m, 3, stride=1, padding=1)
+        den = F.avg_pool2d(m, 3, stride=1, padding=1)
+        grow = (m == 0) & (den > 0)
+        d = torch.where(grow, num / den.clamp_min(1e-12), d)
+        m = torch.where(grow, torch.ones_like(m), m)
+    mean = (d * m).sum(dim=(-2, -1), keepdim=True) / m.sum(dim=(-2, -1), keepdim=True).clamp_min(1.0)
+    return torch.where(m > 0, d, mean.expand_as(d))
+
+
 def run_metres(net: DDRNet, depth: torch.Tensor, grey: torch.Tensor | None, *, d_min: float,
                d_max: float) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """Depth ``(B, 1, H, W)`` metres (NaN holes) and grey ``[0, 1]`` -> ``(D_dn, D_dt)`` metres (no holes)."""
-    x = normalise_depth(depth, d_min=d_min, d_max=d_max)
+    """Depth ``(B, 1, H, W)`` metres (NaN holes, filled by :func:`fill_holes`) and grey ``[0, 1]`` ->
+    ``(D_dn, D_dt)`` metres (no holes)."""
+    x = normalise_depth(fill_holes(depth), d_min=d_min, d_max=d_max)
     g = None if grey is None else grey * 2.0 - 1.0
     dn, dt = net(x, g)
     back = lambda t: None if t is None else denormalise_depth(t, d_min=d_min, d_max=d_max)  # noqa: E731
@@ -96,7 +120,9 @@ def batch_loss(loss_cfg: LossConfig, *, d_min: float, d_max: float):
     def loss(net: DDRNet, batch: dict) -> torch.Tensor:
         depth, ref = _frame(batch, "lq_depth"), _frame(batch, "reference")
         grey = grey_of(_frame(batch, "color"))
-        mask = (_frame(batch, "roi") > 0.5) & torch.isfinite(ref) & torch.isfinite(depth)
+        mask = torch.isfinite(ref) & torch.isfinite(depth)
+        if loss_cfg.foreground_only:
+            mask = mask & (_frame(batch, "roi") > 0.5)
         if loss_cfg.max_ref_diff_m > 0:
             mask = mask & ((depth - ref).abs() < loss_cfg.max_ref_diff_m)
         inner = net.module if hasattr(net, "module") else net

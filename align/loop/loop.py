@@ -41,7 +41,10 @@ class LoopOptions:
     draws. min_improvement: smallest relative held-out loss drop accepted (a practical floor: on clean
     simulated sessions a lens k1 of -0.003 once passed z and BIC with a 0.12 % drop, absorbing
     structure at the HQ image border that no effect models; real effects of the issue's sizes
-    drop it by 0.3 % (drift 1000 ppm over 4 s) to 30 % (lens k1 0.1)). scale_px, depth_scale_rel:
+    drop it by 0.3 % (drift 1000 ppm over 4 s) to 30 % (lens k1 0.1)). depth_min_improvement: the same
+    for the depth phase (a 2 s session with LQ k1 0.1 gave a spurious 5 mm offset at 0.39 %, absorbing
+    the depth error of moving edges between unsynchronised frames; a real 0.3 % scale drops it by 1.9 %,
+    a 10 mm offset by 1.8 %). scale_px, depth_scale_rel:
     Cauchy scales (None: 2.5 robust sigmas of the base fit's residual). max_stages: effects accepted at most."""
 
     folds: int = 5
@@ -50,6 +53,7 @@ class LoopOptions:
     z_floor: float = 3.0
     replicates: int = 100
     min_improvement: float = 0.0025
+    depth_min_improvement: float = 0.01
     scale_px: float | None = None
     depth_scale_rel: float | None = None
     max_stages: int = 6
@@ -383,7 +387,7 @@ def fit_depth_effects(data: DepthData, *, declared: dict | None = None, options:
         lb, bb = h.losses(base), h.bic(base)
         comps = {lib[i].name: compare(h, base, np.array([i]), base_loss=lb, base_bic=bb) for i in cands}
         name, alike = choose(comps, [lib[i].name for i in cands], threshold=threshold,
-                             min_improvement=o.min_improvement)
+                             min_improvement=o.depth_min_improvement)
         stages.append(StageRecord(stage, comps, name))
         if name is None:
             break

@@ -31,6 +31,9 @@ from bench.errors import BenchError
 OUTLIER_SIGMAS = 8.0
 #: lags (px) at which the spatial correlation of the residual is measured
 LAGS = (1, 2, 3, 4, 6, 8, 12, 16, 24)
+#: bins of brightness (0-1) and of texture (local standard deviation of brightness, 7x7 px) for the fill rate
+LUMINANCE_EDGES = np.linspace(0, 1, 11)
+TEXTURE_EDGES = np.array([0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.16, 0.5])
 
 
 @dataclass
@@ -178,7 +181,11 @@ def diagnose_sensor(data: SensorFrames, *, depth_edges: np.ndarray | None = None
     halves = _halves(len(res_c), res_c.shape[1:])
     rho_frames = [S.autocorrelation(r, LAGS) for r in res_c]
     rho, pairs = _pool_rho(rho_frames)
-    corr = _correlation_selection(rho, pairs, [[S.autocorrelation(r, LAGS) for r in _masked(res_c, h)] for h in halves])
+    if len(res_c) >= 2:  # halves are frame subsets: reuse the per-frame correlations
+        half_rho = [[rho_frames[i] for i in range(len(res_c)) if i % 2 == k] for k in (0, 1)]
+    else:
+        half_rho = [[S.autocorrelation(r, LAGS) for r in _masked(res_c, h)] for h in halves]
+    corr = _correlation_selection(rho, pairs, half_rho)
     s_px = corr.best.params.get("s_px", 0.0) if corr.chosen == "gaussian" else 0.0
     area = max(1.0, 4 * np.pi * s_px ** 2)
     sigma = S.binned(zref, res_c, edges, area_px=area)
@@ -197,8 +204,7 @@ def diagnose_sensor(data: SensorFrames, *, depth_edges: np.ndarray | None = None
     if all(lum is not None for lum in data.luminance):
         lum = np.stack(data.luminance)
         tex = np.stack([_texture(v) for v in data.luminance])
-        le = np.linspace(0, 1, 11)
-        te = np.array([0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.16, 0.5])
+        le, te = LUMINANCE_EDGES, TEXTURE_EDGES
         fill_lum = (0.5 * (le[1:] + le[:-1]),) + S.fill_by(lum[has_ref], valid[has_ref], le)
         fill_tex = (0.5 * (te[1:] + te[:-1]),) + S.fill_by(tex[has_ref], valid[has_ref], te)
     edge = _edge_errors(data, refs)

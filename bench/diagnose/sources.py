@@ -191,7 +191,9 @@ def load_d415(root: Path) -> SensorFrames:
     files = sorted(root.glob("0_M11_depth_*.png"))
     depth = [_read_png16(f, 0.001) for f in files]
     return SensorFrames("d415", "Intel RealSense D415", "stereo", K, depth, [None] * len(depth), "planes",
-                        stereo_focal_px=K.fx, baseline_m=0.055, source=str(root))
+                        stereo_focal_px=K.fx, baseline_m=0.055, source=str(root),
+                        notes=["f B is taken at the 640x360 of the files; had the camera matched at 1280x720 and "
+                               "the frames been downscaled, f B and the subpixel value would be twice as large"])
 
 
 def load_azure(path: Path, *, max_frames: int = 60) -> SensorFrames:

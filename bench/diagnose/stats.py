@@ -56,11 +56,11 @@ def robust_plane(points: np.ndarray, *, iterations: int = 6, k: float = 3.0) -> 
     >>> rng = np.random.default_rng(0)
     >>> P = np.c_[rng.uniform(-1, 1, (500, 2)), np.full(500, 2.0)]
     >>> P[:20, 2] = 9.0  # outliers
-    >>> p = robust_plane(P); round(p.d, 6), round(abs(p.n[2]), 6)
+    >>> p = robust_plane(P); round(p.d, 6), round(float(abs(p.n[2])), 6)
     (2.0, 1.0)
     """
     P = np.asarray(points, np.float64)
-    keep = np.ones(len(P), bool)
+    keep = _lmeds_inliers(P, k)
     c, n = P.mean(axis=0), np.array([0.0, 0.0, 1.0])
     for _ in range(iterations):
         if keep.sum() < 3:
@@ -75,6 +75,28 @@ def robust_plane(points: np.ndarray, *, iterations: int = 6, k: float = 3.0) -> 
         n, d = -n, -d
     r = P[keep] @ n - d
     return Plane(n, d, float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan"), float(keep.mean()))
+
+
+def _lmeds_inliers(P: np.ndarray, k: float, trials: int = 48) -> np.ndarray:
+    """Start of :func:`robust_plane`: the plane through 3 sample points with the least median
+    residual (least median of squares, robust to up to half outliers), and the points within
+    ``k`` robust sigmas of it. Deterministic (fixed seed)."""
+    n_pts = len(P)
+    if n_pts < 10:
+        return np.ones(n_pts, bool)
+    idx = np.random.default_rng(0).integers(0, n_pts, size=(trials, 3))
+    a, b, c = P[idx[:, 0]], P[idx[:, 1]], P[idx[:, 2]]
+    nrm = np.cross(b - a, c - a)
+    length = np.linalg.norm(nrm, axis=1)
+    ok = length > 1e-12
+    if not ok.any():
+        return np.ones(n_pts, bool)
+    nrm, a = nrm[ok] / length[ok, None], a[ok]
+    sub = P if n_pts <= 4000 else P[np.random.default_rng(1).integers(0, n_pts, 4000)]
+    med = np.median(np.abs(sub @ nrm.T - np.sum(a * nrm, axis=1)), axis=0)
+    best = int(np.argmin(med))
+    r = np.abs(P @ nrm[best] - a[best] @ nrm[best])
+    return r <= k * MAD_TO_SIGMA * max(med[best], 1e-9) + 1e-6
 
 
 def plane_depth(plane: Plane, ray_xy: np.ndarray) -> np.ndarray:
@@ -95,7 +117,7 @@ def tile_plane_reference(depth: np.ndarray, ray_xy: np.ndarray, *, tile: int = 2
         tile: tile side (px); min_valid: valid fraction a tile needs.
         keep_quantile: a tile is kept when its residual RMS over ``z**2`` (the stereo growth) is in
             this lowest quantile of all candidate tiles (curved or cluttered tiles are dropped).
-        max_range_m: tiles spanning more depth than this (silhouettes) are skipped.
+        max_range_m: tiles whose 5-95 % depth range exceeds this (silhouettes) are skipped.
     Returns:
         ``(H, W)`` float32 reference depth (metres), the tile's plane, NaN outside kept tiles.
     """
@@ -105,7 +127,7 @@ def tile_plane_reference(depth: np.ndarray, ray_xy: np.ndarray, *, tile: int = 2
         for c0 in range(0, W - tile + 1, tile):
             z = depth[r0:r0 + tile, c0:c0 + tile]
             ok = np.isfinite(z)
-            if ok.mean() < min_valid or np.ptp(z[ok]) > max_range_m:
+            if ok.mean() < min_valid or np.subtract(*np.percentile(z[ok], [95, 5])) > max_range_m:
                 continue
             xy = ray_xy[r0:r0 + tile, c0:c0 + tile][ok]
             P = np.c_[xy * z[ok][:, None], z[ok]]

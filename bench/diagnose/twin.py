@@ -17,7 +17,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from bench.diagnose.core import DiagnoseResult, SensorDiagnosis, diagnose_sensor, references
+from bench.diagnose.core import LUMINANCE_EDGES, TEXTURE_EDGES, DiagnoseResult, SensorDiagnosis, diagnose_sensor, references
 from bench.diagnose.data import SensorFrames
 from capture.sim.noise import StereoNoise, TofNoise, stereo_depth, tof_depth
 
@@ -30,26 +30,61 @@ def stages(d: SensorDiagnosis, data: SensorFrames) -> list[tuple[str, StereoNois
     """``[(label, noise model)]``: the default sensor, then each diagnosed effect added in turn."""
     der = d.derived
     corr = _native_px(der.get("correlation_px") or 0.0, data)
+    # the random error and its spatial correlation are one effect: a smaller matching noise leaves
+    # a larger (white) quantisation share, which lowers the correlation, and the other way round
     if data.technology == "tof":
         out = [("default", TofNoise())]
-        out.append(("+ correlation", replace(out[-1][1], correlation_px=corr)))
         lin = _fit(d, "linear")
         a, b = max(lin.params["a"], 0.0), max(lin.params["b"], 0.0)
-        out.append(("+ fitted sigma(z)", replace(out[-1][1], sigma0_m=a, sigma_slope=b, z0_m=0.0)))
+        out.append(("+ fitted sigma(z), correlation", replace(out[-1][1], sigma0_m=a, sigma_slope=b, z0_m=0.0,
+                                                               correlation_px=corr)))
     else:
         step = 1 / 8 if data.technology == "structured_light" else 1 / 32
         base = StereoNoise(baseline_m=data.baseline_m or 0.055, disparity_step_px=step)
-        out = [("default", base), ("+ correlation", replace(base, correlation_px=corr))]
-        out.append(("+ fitted subpixel (z^2)", replace(out[-1][1], subpixel_px=der["subpixel_px"])))
+        out = [("default", base),
+               ("+ fitted subpixel (z^2), correlation",
+                replace(base, subpixel_px=matching_subpixel(der["subpixel_px"], step), correlation_px=corr))]
         if der.get("noise_floor_m", 0) > 1e-4:
-            out.append(("+ noise floor", replace(out[-1][1], subpixel_px=der["floor_quadratic_subpixel_px"],
-                                                 noise_floor_m=der["noise_floor_m"])))
+            out.append(("+ noise floor", replace(out[-1][1], noise_floor_m=der["noise_floor_m"],
+                                                 subpixel_px=matching_subpixel(der["floor_quadratic_subpixel_px"], step))))
+        thresholds = dropout_thresholds(d)
+        if thresholds:
+            out.append(("+ dropout thresholds", replace(out[-1][1], **thresholds)))
     if der.get("outlier_fraction", 0) > 0:
         out.append(("+ outliers", replace(out[-1][1], outlier_fraction=der["outlier_fraction"])))
     if der.get("board_model") == "offset" and data.technology != "tof":
         out.append(("+ depth offset", replace(out[-1][1], depth_offset_m=der["board_params"]["offset_m"])))
     if der.get("board_model") == "disparity_offset" and data.technology != "tof":
         out.append(("+ disparity offset", replace(out[-1][1], disparity_offset_px=der["board_params"]["delta_px"])))
+    return out
+
+
+def matching_subpixel(measured_px: float, step_px: float) -> float:
+    """The simulator's matching noise (px) whose sum with the quantisation of the disparity to
+    ``step_px`` (variance ``step**2 / 12``) has the measured spread ``measured_px``.
+
+    >>> round(matching_subpixel(float(np.hypot(0.06, 0.125 / np.sqrt(12))), 0.125), 6)
+    0.06
+    """
+    return float(np.sqrt(max(measured_px ** 2 - step_px ** 2 / 12, 0.0)))
+
+
+def dropout_thresholds(d: SensorDiagnosis) -> dict:
+    """``min_luminance`` / ``min_contrast`` of the stereo model read off the measured fill rate
+    against brightness and texture: the upper edge of the highest bin (from the bottom, in a
+    row) where fewer than half the pixels are measured; 0 when even the darkest / flattest bin
+    is mostly measured (an active sensor with its own pattern). Empty without a colour image."""
+    out = {}
+    for key, table, edges in (("min_luminance", d.fill_luminance, LUMINANCE_EDGES),
+                              ("min_contrast", d.fill_texture, TEXTURE_EDGES)):
+        if table is None:
+            continue
+        fill = table[1]
+        k = 0
+        while k < len(fill) and np.isfinite(fill[k]) and fill[k] < 0.5:
+            k += 1
+        if np.isfinite(fill[0]) or k > 0:
+            out[key] = float(edges[k]) if k > 0 else 0.0
     return out
 
 
@@ -151,6 +186,11 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
     statistic worse (:func:`worse_statistics`) is reported and rejected. ``final`` is the kept model.
     """
     real = statistics(d)
+    dropped = []
+    if data.reference_kind == "planes":
+        # local planes are kept only where the sensor measured most pixels: their fill is biased
+        real.pop("fill_rate")
+        dropped.append("fill_rate not compared: local-plane references are chosen where the sensor measured")
     c = d.sigma.centre
     w = np.diff(c).mean() if len(c) > 1 else 0.05
     edges = np.r_[c - w / 2, c[-1] + w / 2]
@@ -165,7 +205,7 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
     st = stages(d, data)
     kept_label, kept = st[0]
     values = {kept_label: measure(kept)}
-    labels, notes = [kept_label], [f"{kept_label}: {_describe(kept)}"]
+    labels, notes = [kept_label], dropped + [f"{kept_label}: {_describe(kept)}"]
     prev = kept
     for label, target in st[1:]:
         changes = {k: v for k, v in asdict(target).items() if v != getattr(prev, k)}
@@ -199,11 +239,18 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
 
 def _describe(noise) -> str:
     keys = ("subpixel_px", "noise_floor_m", "correlation_px", "outlier_fraction", "depth_offset_m",
-            "disparity_offset_px", "sigma0_m", "sigma_slope", "z0_m")
+            "disparity_offset_px", "min_luminance", "min_contrast", "sigma0_m", "sigma_slope", "z0_m")
     d = noise.to_dict()
     return ", ".join(f"{k} = {d[k]:.4g}" for k in keys if k in d)
 
 
 def sim_to_real_tables(frames: list[SensorFrames], result: DiagnoseResult, *, seed: int = 0) -> dict:
     """:func:`sim_to_real` for every sensor of a diagnosis."""
-    return {f.sensor: sim_to_real(f, result.sensors[f.sensor], seed=seed) for f in frames}
+    out = {}
+    for f in frames:
+        if f.technology != "tof" and not f.fB:
+            out[f.sensor] = {"stages": [], "statistics": {}, "values": {}, "final_stage": None, "final": None,
+                             "notes": ["no stereo geometry (focal length x baseline) known: no simulated twin"]}
+            continue
+        out[f.sensor] = sim_to_real(f, result.sensors[f.sensor], seed=seed)
+    return out

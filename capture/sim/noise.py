@@ -42,10 +42,14 @@ Both models list their parameters in ``to_dict()``, which the simulator writes t
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+import json
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
 
 import cv2
 import numpy as np
+
+from capture.sim.errors import SimulationError
 
 
 @dataclass(frozen=True)
@@ -113,6 +117,39 @@ class TofNoise:
         2.0
         """
         return self.sigma0_m + self.sigma_slope * np.maximum(np.asarray(z_m, dtype=np.float64) - self.z0_m, 0.0)
+
+
+# ----------------------------------------------------------------------------- measured profiles
+#: Noise models measured on real captures (``depthbench bench diagnose``, issue 13), with provenance;
+#: written by ``python -m bench.diagnose.profiles``.
+PROFILES_PATH = Path(__file__).with_name("sensor_profiles.json")
+
+
+def profile_names() -> list[str]:
+    """Names of the measured sensor profiles (e.g. ``D415``, ``D435``, ``Azure Kinect``, ``Kinect v1``)."""
+    return list(_profiles())
+
+
+def sensor_profile(name: str) -> StereoNoise | TofNoise:
+    """The noise model of a real sensor as measured on its capture (see ``sensor_profiles.json``).
+
+    The parameters are in the sensor's native depth pixels; its geometry (``baseline_m``) is
+    part of the profile.
+    """
+    profiles = _profiles()
+    if name not in profiles:
+        raise SimulationError(f"sensor profile {name!r} is unknown (known: {', '.join(profiles) or 'none'})")
+    entry = profiles[name]
+    cls = TofNoise if entry["model"] == "tof" else StereoNoise
+    known = {f.name for f in fields(cls)}
+    return cls(**{k: v for k, v in entry["params"].items() if k in known and k != "model"})
+
+
+def _profiles() -> dict:
+    try:
+        return json.loads(PROFILES_PATH.read_text())
+    except FileNotFoundError:
+        return {}
 
 
 # ----------------------------------------------------------------------------- helpers

@@ -4,6 +4,10 @@ Depth convention: the ray of pixel ``(u, v)`` has direction ``(x, y, 1)`` in the
 (``(x, y)`` the undistorted normalised coordinates of the pixel), so Open3D's ``t_hit`` *is*
 the z-depth in metres.
 
+Shading normals: facets' normals on flat parts (walls, furniture); on smooth parts (bodies,
+balloons) the vertex normals interpolated across each triangle (Phong normals), so curved
+surfaces show no facets in the colour or the shaded luminance.
+
 Speed: the rigs never move, so what a camera sees of the still parts of a scene (room,
 furniture) is cast and shaded once per camera (the *still layer*). Each frame then casts only
 the pixels whose rays can meet a moving part: the union of the image rectangles of every
@@ -96,6 +100,7 @@ class Renderer:
         self._time: float | None = None
         self._rc: o3d.t.geometry.RaycastingScene | None = None
         self._vertices: np.ndarray | None = None
+        self._normals: np.ndarray | None = None
         self._still: dict[int, _Layer] = {}
         self.last_cast_pixels = 0
         #: Seconds spent in Embree (``raycast``) and in the shading kernels (``shade``),
@@ -111,21 +116,43 @@ class Renderer:
     def _scene_at(self, t_s: float) -> o3d.t.geometry.RaycastingScene:
         if self._rc is None or self._time != t_s:
             self._vertices = self.scene.vertices_at(t_s)
+            self._normals = self.scene.normals_at(t_s) if self.scene.has_smooth else None
             self._rc = o3d.t.geometry.RaycastingScene(nthreads=self.nthreads)
             self._rc.add_triangles(o3d.core.Tensor(self._vertices), self._triangles)
             self._time = t_s
         return self._rc
 
-    def _cast_into(self, rc, rays: np.ndarray, idx: np.ndarray, layer: _Layer) -> None:
+    def _cast_into(self, rc, rays: np.ndarray, idx: np.ndarray, layer: _Layer, normals: np.ndarray | None) -> None:
         t0 = time.perf_counter()
         ans = {k: v.numpy() for k, v in rc.cast_rays(o3d.core.Tensor(rays), nthreads=self.nthreads).items()}
         t1 = time.perf_counter()
         scene = self.scene
-        shade_hits(ans["t_hit"], ans["primitive_ids"], ans["primitive_uvs"], ans["primitive_normals"], idx,
+        shade_hits(ans["t_hit"], ans["primitive_ids"], ans["primitive_uvs"], self.hit_normals(ans, normals), idx,
                    scene.triangles, scene.rest_vertices, scene.triangle_material, self._params, self._tint,
                    np.float32(BACKGROUND_RGB), layer.z, layer.lum_albedo, layer.lum_shaded, layer.rgb)
         self.stage_s["raycast"] += t1 - t0
         self.stage_s["shade"] += time.perf_counter() - t1
+
+    def hit_normals(self, ans: dict[str, np.ndarray], vertex_normals: np.ndarray | None = None) -> np.ndarray:
+        """World normals of the hits of a cast (``ans``: Open3D's answer, any shape): the facet's
+        normal, or on smooth parts the vertex normals (``vertex_normals``, default: the scene at
+        the last cast time) interpolated with the hit's barycentric coordinates."""
+        n = ans["primitive_normals"]
+        vn = self._normals if vertex_normals is None else vertex_normals
+        if vn is None:
+            return n
+        prim = ans["primitive_ids"]
+        hit = np.isfinite(ans["t_hit"])
+        sel = np.zeros(hit.shape, bool)
+        sel[hit] = self.scene.triangle_smooth[prim[hit]]
+        if not sel.any():
+            return n
+        tri = self.scene.triangles[prim[sel]]
+        uv = ans["primitive_uvs"][sel]
+        s = (1 - uv[:, :1] - uv[:, 1:]) * vn[tri[:, 0]] + uv[:, :1] * vn[tri[:, 1]] + uv[:, 1:] * vn[tri[:, 2]]
+        out = n.copy()
+        out[sel] = s / np.maximum(np.linalg.norm(s, axis=-1, keepdims=True), 1e-12)
+        return out
 
     def _still_layer(self, cam: CameraRays) -> _Layer:
         key = id(cam)
@@ -134,7 +161,8 @@ class Renderer:
             layer = _Layer.empty(n)
             s = self.scene
             rc = self._build(s.vertices_at(0.0)[: s.n_still_vertices], s.triangles[: s.n_still_triangles])
-            self._cast_into(rc, cam.rays, np.arange(n, dtype=np.int64), layer)
+            self._cast_into(rc, cam.rays, np.arange(n, dtype=np.int64), layer,
+                            s.normals_at(0.0) if s.has_smooth else None)
             self._still[key] = (cam, layer)  # keep cam alive so id() stays unique
         return self._still[key][1]
 
@@ -164,7 +192,7 @@ class Renderer:
         else:
             layer, idx = _Layer.empty(n), np.arange(n, dtype=np.int64)
         if idx.size:
-            self._cast_into(rc, cam.rays[idx], idx, layer)
+            self._cast_into(rc, cam.rays[idx], idx, layer, self._normals)
         self.last_cast_pixels = int(idx.size)
         rgb8 = np.empty((n, 3), np.uint8)
         t0 = time.perf_counter()
@@ -227,5 +255,5 @@ def reference_colors(renderer: Renderer, ans: dict[str, np.ndarray]) -> np.ndarr
     rest = scene.rest_vertices
     p = (1 - uv[:, :1] - uv[:, 1:]) * rest[tri[:, 0]] + uv[:, :1] * rest[tri[:, 1]] + uv[:, 1:] * rest[tri[:, 2]]
     albedo = surface_color(p, scene.triangle_material[prim], scene.materials)
-    out[hit] = shade(albedo, ans["primitive_normals"][hit])
+    out[hit] = shade(albedo, renderer.hit_normals(ans)[hit])
     return out

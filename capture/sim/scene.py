@@ -9,7 +9,8 @@ which is what lets the texture stay fixed to each surface.
 
 Scenes (``SCENES``):
 
-* ``people``: three figures (capsules and a sphere head, swinging arms and legs) walking
+* ``people``: three figures (tapered, smooth-shaded body segments and an ellipsoidal head,
+  swinging arms and legs) walking
   elliptical paths at about 1 m/s, turning continuously, plus three drifting balloons;
 * ``balloons``: eight textured balloons drifting and spinning;
 * ``planes``: fronto-parallel textured panels 1.0, 1.5, 2.0, 2.5 and 3.0 m in front of the
@@ -34,7 +35,7 @@ from typing import Callable
 import numpy as np
 
 from capture.sim.errors import SimulationError
-from capture.sim.geometry import box, capsule, pose, quad, rot_x, rot_y, rot_z, sphere
+from capture.sim.geometry import _lathe, box, pose, quad, rot_x, rot_y, rot_z, sphere
 from capture.sim.texture import Material
 
 SCENES = ("people", "balloons", "planes")
@@ -46,11 +47,13 @@ PLANES_WALL_M = 4.5
 
 @dataclass
 class Part:
-    """A rigid triangle mesh in its local frame (metres) with a material id."""
+    """A rigid triangle mesh in its local frame (metres) with a material id. ``smooth``: shade
+    with normals interpolated from the vertices (curved bodies) instead of the facets' normals."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     material: int
+    smooth: bool = False
 
 
 @dataclass
@@ -85,6 +88,9 @@ class Scene:
             [p.triangles + o for p, o in zip(parts, self._offsets[:-1])]).astype(np.uint32)
         self.triangle_material = np.concatenate(
             [np.full(len(p.triangles), p.material, dtype=np.int32) for p in parts])
+        self.triangle_smooth = np.concatenate([np.full(len(p.triangles), p.smooth) for p in parts])
+        self.rest_normals = np.concatenate([vertex_normals(p.vertices, p.triangles) if p.smooth
+                                            else np.zeros_like(p.vertices) for p in parts]).astype(np.float32)
         still = [a for a in self.actors if not a.moving or self.static]
         self.n_still_parts = sum(len(a.parts) for a in still)
         self.n_still_triangles = sum(len(p.triangles) for a in still for p in a.parts)
@@ -111,6 +117,37 @@ class Scene:
         for T, a, b in zip(self.part_poses(t_s), self._offsets[:-1], self._offsets[1:]):
             out[a:b] = self.rest_vertices[a:b] @ T[:3, :3].T.astype(np.float32) + T[:3, 3].astype(np.float32)
         return out
+
+    @property
+    def has_smooth(self) -> bool:
+        return bool(self.triangle_smooth.any())
+
+    def normals_at(self, t_s: float) -> np.ndarray:
+        """World unit normals ``(V, 3)`` float32 of the vertices of smooth parts at ``t_s`` (zero elsewhere)."""
+        out = np.zeros_like(self.rest_normals)
+        for T, a, b in zip(self.part_poses(t_s), self._offsets[:-1], self._offsets[1:]):
+            if self.rest_normals[a:b].any():
+                out[a:b] = self.rest_normals[a:b] @ T[:3, :3].T.astype(np.float32)
+        return out
+
+
+def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area-weighted unit normals ``(V, 3)`` of a closed mesh's vertices (outward for the
+    counter-clockwise triangles of :mod:`capture.sim.geometry`).
+
+    >>> from capture.sim.geometry import sphere
+    >>> v, t = sphere(1.0)
+    >>> n = vertex_normals(v, t)
+    >>> bool(np.all(np.sum(n * v, axis=1) > 0.99))
+    True
+    """
+    v = np.asarray(vertices, np.float64)
+    f = np.cross(v[triangles[:, 1]] - v[triangles[:, 0]], v[triangles[:, 2]] - v[triangles[:, 0]])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, triangles[:, k], f)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return (n / np.maximum(norm, 1e-12)).astype(np.float32)
 
 
 # ----------------------------------------------------------------------------- room
@@ -186,15 +223,41 @@ class Walk:
         return p, float(np.arctan2(v[1], v[0])), gait
 
 
+#: radius at the far end over radius at the joint: limbs taper towards wrists and ankles
+_TAPER = {"torso": 0.85, "upper_leg": 0.8, "lower_leg": 0.7, "upper_arm": 0.85, "lower_arm": 0.75}
+
+
+def tapered_limb(r_top: float, r_bottom: float, length: float, *, segments: int = 16,
+                 cap_rings: int = 4, body_rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """A closed body segment from z = 0 down to z = -length: a hemisphere of ``r_top`` at the joint,
+    a cone to ``r_bottom``, a hemisphere of ``r_bottom`` at the far end (a capsule when the radii
+    are equal). Shaded smooth, it has no visible facets or seams.
+
+    >>> v, t = tapered_limb(0.1, 0.05, 0.5)
+    >>> round(float(v[:, 2].max()), 6), round(float(v[:, 2].min()), 6)
+    (0.0, -0.5)
+    """
+    th = np.linspace(0, np.pi / 2, cap_rings + 1)
+    bottom_r, bottom_z = r_bottom * np.sin(th), -length + r_bottom - r_bottom * np.cos(th)
+    s = np.linspace(0, 1, body_rings + 2)[1:-1]
+    mid_r = r_bottom + (r_top - r_bottom) * s
+    mid_z = (-length + r_bottom) + ((-r_top) - (-length + r_bottom)) * s
+    top_r, top_z = r_top * np.cos(th), -r_top + r_top * np.sin(th)
+    return _lathe(np.concatenate([bottom_r, mid_r, top_r]), np.concatenate([bottom_z, mid_z, top_z]), segments)
+
+
 def _figure_parts(ids: _Ids, rng: np.random.Generator) -> list[Part]:
+    """Smooth, body-like segments (tapered, smooth-shaded) and an ellipsoidal head."""
     parts = []
     for name, (r, length, _) in _BODY.items():
-        v, t = capsule(r, length)
+        v, t = tapered_limb(r, r * _TAPER[name.rsplit("_", 1)[0] if name != "torso" else "torso"], length)
         if name == "torso":
             v = v * np.array([0.75, 1.15, 1.0])
         parts.append(Part(v, t, ids.new(Material(fine_m=float(rng.uniform(0.02, 0.04)), coarse_m=0.1,
-                                                 patch_m=0.25, dark_fraction=0.1, flat_fraction=0.05))))
-    parts.append(Part(*sphere(0.11, segments=16, rings=8), ids.new(Material(fine_m=0.03, dark_fraction=0.0))))
+                                                 patch_m=0.25, dark_fraction=0.1, flat_fraction=0.05)), smooth=True))
+    hv, ht = sphere(0.11, segments=16, rings=8)
+    parts.append(Part(hv * np.array([0.9, 0.82, 1.08]), ht, ids.new(Material(fine_m=0.03, dark_fraction=0.0)),
+                      smooth=True))
     return parts
 
 
@@ -249,7 +312,7 @@ def _balloon(ids: _Ids, rng: np.random.Generator, name: str, *, region, amplitud
                   tuple(rng.uniform(0.4, 1.2, 3)), tuple(rng.uniform(0, 2 * np.pi, 3)),
                   tuple(axis / np.linalg.norm(axis)), float(rng.uniform(0.3, 0.9)))
     part = Part(*sphere(radius), ids.new(Material(fine_m=0.025, coarse_m=0.08, patch_m=0.2,
-                                                  dark_fraction=0.05, flat_fraction=0.05)))
+                                                  dark_fraction=0.05, flat_fraction=0.05)), smooth=True)
     return Actor(name, [part], lambda t, d=drift: [d.pose(t)])
 
 

@@ -293,11 +293,45 @@ def board_analysis(data: SensorFrames, planes) -> dict:
                      "pose_rms_px": b.rms_px, "corners": b.n_corners,
                      "z_centre_m": float(np.nanmedian(np.where(b.mask, data.depth[i], np.nan)))})
     out = {"frames": rows}
+    lens = lens_check(data)
+    if lens:
+        out["lens"] = lens
     if len({r["pose"] for r in rows}) >= 2:
         out["models"] = board_scale_models(np.array([r["board_plane_units"] for r in rows]),
                                            np.array([r["depth_plane_m"] for r in rows]),
                                            np.array([r["pose"] for r in rows]), fB=data.fB)
     return out
+
+
+def lens_check(data: SensorFrames) -> dict | None:
+    """Does the colour camera's undeclared lens distortion explain the board sizes? Fits the
+    radial ``k1`` (focal length and principal point held) to the board corners of every pose and
+    reports the reprojection RMS and the board distances (square units) with and without it."""
+    import cv2
+
+    views = {}
+    for i, b in enumerate(data.board):
+        if b is not None and b.corners_px is not None and data.group[i] not in views:
+            views[data.group[i]] = b
+    if len(views) < 1:
+        return None
+    K = data.intrinsics
+    obj = [v.corners_board.astype(np.float32) for v in views.values()]
+    img = [v.corners_px.astype(np.float32) for v in views.values()]
+    flags = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_FOCAL_LENGTH | cv2.CALIB_FIX_PRINCIPAL_POINT
+             | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3)
+    rms, _, dist, rvecs, tvecs = cv2.calibrateCamera(obj, img, (K.width, K.height), K.K.copy(), np.zeros(5), flags=flags)
+    d_with = {}
+    for g, rv, tv in zip(views, rvecs, tvecs):
+        R = cv2.Rodrigues(rv)[0]
+        d_with[int(g)] = float(abs(np.asarray(tv).ravel() @ R[:, 2]))
+    d_without = {int(g): v.d_units for g, v in views.items()}
+    poses = sorted(d_with)
+    ratio = (d_with[poses[0]] / d_without[poses[0]]) / (d_with[poses[-1]] / d_without[poses[-1]])
+    return {"k1": float(dist.ravel()[0]), "rms_px_with_k1": float(rms),
+            "rms_px_without": float(np.mean([v.rms_px for v in views.values()])),
+            "board_units_with_k1": d_with, "board_units_without": d_without,
+            "near_far_size_change_from_k1": float(1 / ratio - 1)}
 
 
 def board_scale_models(d_units: np.ndarray, d_depth: np.ndarray, pose: np.ndarray, *, fB: float | None) -> dict:

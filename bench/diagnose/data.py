@@ -20,13 +20,16 @@ INDEPENDENT_REFERENCES = ("truth", "fused")
 class BoardView:
     """A ChArUco board seen by the colour camera registered with the depth: the board plane
     ``n . p = d_units`` in *square units* (the board's size is not always known), the pixel mask
-    of the board, the corners used and the pose's reprojection RMS (px)."""
+    of the board, the corners used and the pose's reprojection RMS (px); optionally the corners
+    ``(N, 2)`` px and their board coordinates ``(N, 3)`` in square units (for the lens check)."""
 
     n: np.ndarray
     d_units: float
     mask: np.ndarray
     n_corners: int
     rms_px: float
+    corners_px: np.ndarray | None = None
+    corners_board: np.ndarray | None = None
 
 
 @dataclass

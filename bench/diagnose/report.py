@@ -147,6 +147,11 @@ def _board_lines(board: dict) -> list[str]:
     for r in board["frames"]:
         L.append(f"| {r['frame']} | {r['pose']} | {r['depth_plane_m']:.4f} | {r['board_plane_units']:.3f} | "
                  f"{1000 * r['square_m']:.2f} | {r['angle_deg']:.2f} | {1000 * r['plane_rms_m']:.2f} |")
+    lens = board.get("lens")
+    if lens:
+        L += ["", f"Colour lens check: a radial k1 = {lens['k1']:.3f} (the capture declares no distortion) lowers the "
+              f"corners' reprojection RMS from {lens['rms_px_without']:.2f} to {lens['rms_px_with_k1']:.2f} px; it changes "
+              f"the near/far depth-implied board size by {100 * lens['near_far_size_change_from_k1']:+.1f} %."]
     m = board.get("models")
     if m:
         L += ["", "| depth-error model across poses | parameters | RMS (mm) | leave-one-frame-out (mm) | "

@@ -168,7 +168,7 @@ def load_d435_charuco(root: Path) -> SensorFrames:
         n = pose.T_cam_board.R[:, 2]
         d = float(pose.T_cam_board.t @ n)
         n, d = (-n, -d) if d < 0 else (n, d)
-        view = BoardView(n, d, mask, pose.n_corners, pose.rms_px)
+        view = BoardView(n, d, mask, pose.n_corners, pose.rms_px, xy, spec.corner_points()[ids])
         for f in range(first, first + 3):
             depth.append(_read_png16(root / "depth" / f"{f}.png", 0.001))
             lum.append(_luminance(rgb))

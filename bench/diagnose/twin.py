@@ -1,8 +1,9 @@
 """The simulated twin of a capture and the sim-to-real distance per statistic (pure).
 
-The twin films the *measured scene*: each real frame's reference surfaces (the board plane,
-the local planes, the fused reference or the truth) are the true depth, the real colour image's
-brightness is the brightness, and the simulator's own noise functions
+The twin films the *measured scene*: each real frame's reference surfaces (the ChArUco board
+where the colour image sees it, at the fitted board size; the local planes; the fused
+reference; the truth) are the true depth, the real colour image's brightness is the
+brightness, and the simulator's own noise functions
 (:func:`capture.sim.noise.stereo_depth`, :func:`capture.sim.noise.tof_depth`) make the depth.
 :func:`bench.diagnose.core.diagnose` then measures the twin exactly as it measured the capture.
 
@@ -100,11 +101,23 @@ def noise_from_diagnosis(d: SensorDiagnosis, data: SensorFrames) -> StereoNoise 
     return stages(d, data)[-1][1]
 
 
-def twin(data: SensorFrames, noise: StereoNoise | TofNoise, *, seed: int = 0) -> SensorFrames:
-    """The capture re-filmed by the simulator with ``noise`` (see the module docstring)."""
+def twin(data: SensorFrames, noise: StereoNoise | TofNoise, *, seed: int = 0,
+         square_m: float | None = None) -> SensorFrames:
+    """The capture re-filmed by the simulator with ``noise`` (see the module docstring).
+
+    ``square_m``: with a ChArUco board, the board's square length (metres, as the diagnosis
+    fitted it): the true surface is then the board where the colour camera sees it (its pose
+    scaled to metres), not the plane fitted to the real depth, which carries the real bias."""
     K = data.intrinsics
     rays = K.ray_grid()
     refs, _ = references(data, rays[..., :2].astype(np.float32))
+    if square_m:
+        from bench.diagnose.stats import Plane, plane_depth
+
+        for i, b in enumerate(data.board):
+            if b is not None:
+                refs[i] = np.where(b.mask, plane_depth(Plane(b.n, square_m * b.d_units, 0.0, 1.0),
+                                                       rays[..., :2]), np.nan).astype(np.float32)
     depth = []
     for i, ref in enumerate(refs):
         rng = np.random.default_rng([seed, i])
@@ -113,7 +126,9 @@ def twin(data: SensorFrames, noise: StereoNoise | TofNoise, *, seed: int = 0) ->
             rng.uniform(0.3, 0.7, K.shape).astype(np.float32)
         z_true = _fill_nearest(ref)
         if isinstance(noise, TofNoise):
-            nd = tof_depth(z_true, lum, noise=noise, rng=rng)
+            # no mixed pixels: the reference surfaces are planes separated by the filled holes,
+            # whose artificial depth jumps would mix inside the planes the statistics use
+            nd = tof_depth(z_true, lum, noise=replace(noise, flying_fraction=0.0), rng=rng)
         else:
             # the matcher's focal length sets the disparity; the correlation is given in its pixels
             scale = K.fx / data.stereo_focal_px if data.stereo_focal_px else 1.0
@@ -173,17 +188,26 @@ TOLERANCE = {"sigma_m": 0.01, "fill_rate": 0.005, "rho_lag1": 0.02, "rho_lag4": 
              "bias_m": 0.1, "board_near_far_ratio": 0.003}
 
 
+def _scale_amplitude(noise, k: float):
+    """The noise model with its random-error amplitude multiplied by ``k``."""
+    if isinstance(noise, TofNoise):
+        return replace(noise, sigma0_m=noise.sigma0_m * k, sigma_slope=noise.sigma_slope * k)
+    return replace(noise, subpixel_px=noise.subpixel_px * k)
+
+
 def worse_statistics(before: dict, after: dict) -> list[str]:
     """Statistics whose distance grew by more than 5 % plus :data:`TOLERANCE`."""
-    return [k for k in before if np.isfinite(before[k]) and
+    return [k for k in before if not k.startswith("_") and np.isfinite(before[k]) and
             (not np.isfinite(after[k]) or after[k] > 1.05 * before[k] + TOLERANCE.get(k, 0.0))]
 
 
 def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dict:
     """Distances per statistic for every stage of :func:`stages`.
 
-    Each stage's change is applied on top of the last *kept* model; a stage that makes any
-    statistic worse (:func:`worse_statistics`) is reported and rejected. ``final`` is the kept model.
+    Each stage's change is applied on top of the last *kept* model; the fitted random error is
+    re-scaled once so that the twin reads the measured sigma (plane fits absorb part of correlated
+    noise); a stage that makes any statistic worse (:func:`worse_statistics`) is reported and
+    rejected. ``final`` is the kept model.
     """
     real = statistics(d)
     dropped = []
@@ -195,12 +219,26 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
     w = np.diff(c).mean() if len(c) > 1 else 0.05
     edges = np.r_[c - w / 2, c[-1] + w / 2]
 
+    square = (d.derived.get("board_params") or {}).get("square_m")
+
     def measure(noise) -> dict:
-        st = statistics(diagnose_sensor(twin(data, noise, seed=seed), depth_edges=edges))
+        st = statistics(diagnose_sensor(twin(data, noise, seed=seed, square_m=square), depth_edges=edges))
         out = {k: distance(v, st.get(k, np.nan), relative=k == "sigma_m") for k, v in real.items()}
         if "bias_m" in real:  # bias in units of the measured random error (its bins' spread scales with it)
             out["bias_m"] = distance(real["bias_m"] / real["sigma_m"], st["bias_m"] / real["sigma_m"])
+        ok = np.isfinite(real["sigma_m"]) & np.isfinite(st["sigma_m"])
+        out["_sigma_ratio"] = float(np.median(real["sigma_m"][ok] / st["sigma_m"][ok])) if ok.any() else 1.0
         return out
+
+    def calibrated(noise, v: dict):
+        """A fitted noise amplitude re-scaled once so that the twin's measured sigma matches
+        (correlated noise is partly absorbed by the plane fits, so it reads lower than it is)."""
+        k = v["_sigma_ratio"]
+        if abs(k - 1) < 0.03:
+            return noise, v
+        scaled = _scale_amplitude(noise, k)
+        v2 = measure(scaled)
+        return (scaled, v2) if v2["sigma_m"] < v["sigma_m"] else (noise, v)
 
     st = stages(d, data)
     kept_label, kept = st[0]
@@ -212,6 +250,8 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
         prev = target
         noise = replace(kept, **changes)
         v = measure(noise)
+        if label.startswith("+ fitted"):
+            noise, v = calibrated(noise, v)
         worse = worse_statistics(values[kept_label], v)
         if worse:
             label = f"{label} (rejected)"
@@ -232,6 +272,7 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
         if isinstance(v, np.ndarray):
             return ", ".join(f"{1000 * x:.1f}" for x in v if np.isfinite(x)) + " mm"
         return f"{v:.4f}"
+    values = {s: {k: v for k, v in vals.items() if not k.startswith("_")} for s, vals in values.items()}
     table = {k: {"real": fmt_real(k, v), "distance": {s: fmt(k, values[s][k]) for s in labels}} for k, v in real.items()}
     return {"stages": labels, "statistics": table, "values": values, "notes": notes, "final_stage": kept_label,
             "final": kept.to_dict()}

@@ -11,14 +11,13 @@ torch is imported only when a network is built (``prepare``), so listing methods
 """
 from __future__ import annotations
 
-import logging
 from typing import Any
 
 import numpy as np
 
-from methods.base import Denoiser, FrameInput, check_flag, resolve_device
+from methods.base import FrameInput, check_flag, resolve_device
+from methods.nn.learned import LearnedDenoiser
 
-log = logging.getLogger(__name__)
 
 _HELP = {
     "weights": "weights file from 'depthbench methods train' (RUN/<method>.safetensors)",
@@ -27,7 +26,9 @@ _HELP = {
 }
 
 
-class _SSDDBase(Denoiser):
+class _SSDDBase(LearnedDenoiser):
+    """Leakage guard and provenance from :class:`methods.nn.learned.LearnedDenoiser`; SSDD's own config and nets."""
+
     learned = True
     weights_param = "weights"
     device = "auto"
@@ -51,26 +52,6 @@ class _SSDDBase(Denoiser):
         from methods.ssdd.config import SSDDConfig
 
         return from_dict(SSDDConfig, meta.get("config") or {}, where=str(self.params["weights"]))
-
-    def check_dataset(self, dataset: Any) -> None:
-        from methods.nn.weights import TrainingDataError, leak
-
-        why = leak(self.meta, dataset)
-        if why is None:
-            return
-        if not self.params["allow_train_frames"]:
-            raise TrainingDataError(f"{self.name}: {why}; scoring it would flatter the model "
-                                    "(allow_train_frames=true to score it anyway, marked)")
-        self.leaked.append(dataset.name)
-        log.warning("%s: SCORED ON ITS OWN TRAINING DATA: %s", self.name, why)
-
-    def provenance(self) -> dict[str, Any]:
-        from methods.nn.weights import provenance
-
-        out = provenance(self.meta)
-        if self.leaked:
-            out["WARNING"] = f"scored on its own training/validation data: {', '.join(sorted(set(self.leaked)))}"
-        return out
 
     def _load(self) -> dict:
         import torch

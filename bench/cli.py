@@ -87,6 +87,8 @@ def register(subparsers) -> None:
                         "or not a results folder); drops its cache")
     p.set_defaults(func=_run)
 
+    _add_corpus(sub)
+
     p = sub.add_parser("report", help="rebuild the leaderboard from a results folder's table",
                        description="Rebuild RESULTS/leaderboard.md, leaderboard.html and figures/ from "
                                    "RESULTS/results.parquet (and the depth previews for the qualitative figure). "
@@ -110,6 +112,67 @@ def register(subparsers) -> None:
     from bench.diagnose.cli import add_parser as add_diagnose  # issue 13: sensor error model
 
     add_diagnose(sub)
+
+
+def _seeds(text: str) -> tuple[int, ...]:
+    """``101-105`` or ``101,103,110`` -> seeds."""
+    out: list[int] = []
+    try:
+        for part in text.split(","):
+            a, dash, b = part.strip().partition("-")
+            out += list(range(int(a), int(b) + 1)) if dash else [int(a)]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seeds like 101-105 or 1,4,9, got {text!r}") from None
+    return tuple(out)
+
+
+def _add_corpus(sub) -> None:
+    p = sub.add_parser(
+        "corpus", help="simulate and align a training corpus for the learned methods (with a training manifest)",
+        description="Simulate one LQ+HQ session per seed (scenes and time shifts cycled), align each exactly as "
+                    "'depthbench align' does, and write CORPUS/training.json naming every aligned dataset, its "
+                    "checksum and its split (train/validation/test by sequence). Runs on the benchmark's "
+                    "executors (--jobs, --workers, --scheduler).",
+        epilog="Example: depthbench bench corpus --out corpus --seeds 101-106 --scenes people,balloons "
+               "--validation 1 --test 1, then: depthbench methods train ssdd_lstm --dataset corpus/training.json "
+               "--config tiny --out runs/ssdd")
+    p.add_argument("--out", required=True, metavar="CORPUS", help="corpus folder to create")
+    p.add_argument("--seeds", type=_seeds, default=(101, 102, 103, 104, 105), help="simulator seeds, one sequence "
+                   "each (default 101-105); use other seeds than your benchmark sessions")
+    p.add_argument("--scenes", default="people,balloons", help="scenes cycled over the seeds (default people,balloons)")
+    p.add_argument("--seconds", type=_positive_float, default=3.0, help="seconds per sequence (default 3)")
+    p.add_argument("--scale", type=_positive_float, default=0.5, help="image size factor (default 0.5: 320x240)")
+    p.add_argument("--time-shifts-ms", default="", metavar="MS,MS,...",
+                   help="LQ-vs-HQ clock shifts cycled over the seeds (default: drawn within +-60 ms per seed)")
+    p.add_argument("--validation", type=int, default=1, help="sequences in the validation split (default 1)")
+    p.add_argument("--test", type=int, default=0, help="sequences in the test split (default 0)")
+    p.add_argument("--name", default="sim-corpus", help="corpus name (in the manifest and on leaderboards)")
+    ex = p.add_mutually_exclusive_group()
+    ex.add_argument("--jobs", type=_positive_int, metavar="N", help="local processes (default 1)")
+    ex.add_argument("--workers", type=_positive_int, metavar="N", help="a local Dask cluster with N workers")
+    ex.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask cluster (paths must be shared)")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar on stderr (default: when stderr is a terminal)")
+    p.add_argument("--force", action="store_true", help="replace an existing corpus folder")
+    p.set_defaults(func=_corpus)
+
+
+def _corpus(args) -> int:
+    from bench.corpus import CorpusSpec, make_corpus
+    from bench.executors import ExecutorSpec
+
+    try:
+        shifts = tuple(float(x) for x in args.time_shifts_ms.split(",") if x.strip())
+    except ValueError:
+        raise BenchError(f"--time-shifts-ms {args.time_shifts_ms!r}: expected numbers like -20,35") from None
+    spec = CorpusSpec(seeds=args.seeds, scenes=tuple(s.strip() for s in args.scenes.split(",") if s.strip()),
+                      seconds=args.seconds, scale=args.scale, time_shifts_ms=shifts, validation=args.validation,
+                      test=args.test, name=args.name)
+    ex = ExecutorSpec(jobs=args.jobs or (None if (args.workers or args.scheduler) else 1), workers=args.workers,
+                      scheduler=args.scheduler)
+    res = make_corpus(args.out, spec, executor=ex, force=args.force, progress=args.progress)
+    print(f"{res.manifest}: {res.sequences} sequences (train/validation/test by sequence)")
+    return 0
 
 
 def _run(args) -> int:

@@ -1,8 +1,9 @@
 """Where benchmark tasks run: in this process, a local process pool, or Dask (a local or remote cluster).
 
-An executor runs :func:`bench.compute.compute_frame` on every task and hands each output to a
+An executor runs a task function (:func:`bench.compute.compute_frame` by default; the training
+corpus builder passes its own, :mod:`bench.corpus`) on every task and hands each output to a
 callback as soon as it arrives; the tasks and their outputs do not depend on which executor ran
-them. :class:`ExecutorSpec` is the user's choice, checked before anything is read or written.
+them. The function must be importable by name (module-level) for worker processes. :class:`ExecutorSpec` is the user's choice, checked before anything is read or written.
 """
 from __future__ import annotations
 
@@ -28,9 +29,9 @@ class _Serial:
     name = "serial"
     threads = _share(1)
 
-    def run(self, tasks, on_done):
+    def run(self, tasks, on_done, *, fn=compute_frame, key=None):
         for t in tasks:
-            on_done(t, compute_frame(t))
+            on_done(t, fn(t))
 
 
 class _Processes:
@@ -39,12 +40,12 @@ class _Processes:
         self.name = f"process x{jobs}"
         self.threads = _share(jobs)
 
-    def run(self, tasks, on_done):
+    def run(self, tasks, on_done, *, fn=compute_frame, key=None):
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["bench.compute"])
+        ctx.set_forkserver_preload([fn.__module__])
         ex = ProcessPoolExecutor(max_workers=self.jobs, mp_context=ctx)
         try:
-            pending = {ex.submit(compute_frame, t): t for t in tasks}
+            pending = {ex.submit(fn, t): t for t in tasks}
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for f in done:
@@ -59,7 +60,8 @@ class _Dask:
         self.name = f"dask {scheduler}" if scheduler else f"dask LocalCluster x{workers}"
         self.threads = None if scheduler else _share(workers)   # a remote cluster's machines are not ours to size
 
-    def run(self, tasks, on_done):
+    def run(self, tasks, on_done, *, fn=compute_frame, key=None):
+        """``key(task)``: the Dask key of a task (default: the benchmark's frame-task key)."""
         from distributed import Client, LocalCluster, as_completed
 
         cluster = None
@@ -83,8 +85,7 @@ class _Dask:
         except ValueError as exc:
             raise BenchError(f"--scheduler {self.scheduler}: {exc}") from None
         try:
-            futures = {client.submit(compute_frame, t, key=f"bench-{t.dataset_checksum[:16]}-{t.frames[0]:06d}-"
-                                     f"{R.short('|'.join(m.key for m in t.methods))}", pure=False): t for t in tasks}
+            futures = {client.submit(fn, t, key=(key or _frame_key)(t), pure=False): t for t in tasks}
             try:
                 for f in as_completed(list(futures)):
                     on_done(futures[f], f.result())
@@ -94,6 +95,10 @@ class _Dask:
             client.close()
             if cluster is not None:
                 cluster.close()
+
+
+def _frame_key(t) -> str:
+    return f"bench-{t.dataset_checksum[:16]}-{t.frames[0]:06d}-{R.short('|'.join(m.key for m in t.methods))}"
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,10 @@
 
 simulate (lq-hq rig, moving people and balloons, ground truth)
   -> align (time shift search + extrinsic fit + HQ depth warped onto the LQ image)
-  -> bench (every registered method scored against the warped HQ reference and the truth)
+  -> a small training corpus (other seeds, people and balloons) simulated and aligned the same way,
+     and SSDD's two levels trained on it with the ``tiny`` config (``learned``)
+  -> bench (every registered method, the trained SSDD models included, scored against the warped HQ
+     reference and the truth)
   -> leaderboard (Markdown + HTML + figures)
 
 Each step calls the stage's library function (:func:`capture.sim.simulate`,
@@ -58,6 +61,8 @@ class DemoConfig:
     progress: bool = True
     probes: int | None = None      # HQ frames that fit the time shift and extrinsics (None: align's default)
     reports: bool = True           # the alignment report and the leaderboard's Markdown/HTML/figures
+    learned: bool = True           # train SSDD (tiny) on a corpus of other seeds and score it too
+    corpus_seconds: float = 2.0    # scene time per training sequence (three sequences: two train, one validation)
 
 
 def _command(*parts: Any) -> str:
@@ -79,7 +84,7 @@ def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
     probes = "" if config.probes is None else f"--probes {config.probes}"
     no_report = "" if config.reports else "--no-report"
     align_opts = {"report": config.reports, **({} if config.probes is None else {"probes": config.probes})}
-    return [
+    steps = [
         DemoStep(name="simulate an LQ+HQ rig", output=session,
                  command=_command("capture simulate --rig lq-hq --scene people --seconds", f"{config.seconds:g}",
                                   "--seed", config.seed, scale, "--out", session, shift, f),
@@ -89,12 +94,49 @@ def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
         DemoStep(name="align HQ onto LQ", output=aligned,
                  command=_command("align", session, "--out", aligned, probes, no_report, f),
                  call=lambda: align_session(session, aligned, force=force, progress=config.progress, **align_opts)),
-        DemoStep(name="benchmark every method", output=results,
-                 command=_command("bench run --data", aligned, "--methods", config.methods, "--out", results, jobs,
-                                  no_report, f),
-                 call=lambda: run_benchmark([aligned], config.methods, results, force=force, jobs=config.jobs,
-                                            progress=None if config.progress else False, report=config.reports)),
     ]
+    params, weights_args = {}, ""
+    if config.learned:
+        learned_steps, params = _learned_steps(out, config, force=force)
+        steps += learned_steps
+        if config.methods != "all":
+            params = {k: v for k, v in params.items() if k in config.methods.split(",")}
+        weights_args = " ".join(f"--param {m}.weights={p['weights']}" for m, p in params.items())
+    steps.append(DemoStep(
+        name="benchmark every method", output=results,
+        command=_command("bench run --data", aligned, "--methods", config.methods, weights_args, "--out", results,
+                         jobs, no_report, f),
+        call=lambda: run_benchmark([aligned], config.methods, results, force=force, jobs=config.jobs,
+                                   progress=None if config.progress else False, report=config.reports, params=params)))
+    return steps
+
+
+def _learned_steps(out: Path, config: DemoConfig, *, force: bool) -> tuple[list[DemoStep], dict]:
+    """Corpus (three sequences of other seeds than the benchmark session) and SSDD trained with ``tiny``."""
+    from bench.corpus import CorpusSpec, make_corpus
+    from bench.executors import ExecutorSpec
+    from methods.nn.train import train_method
+
+    corpus, run = out / "corpus", out / "ssdd"
+    seeds = tuple(1000 + 10 * config.seed + k for k in (1, 2, 3))
+    spec = CorpusSpec(seeds=seeds, seconds=config.corpus_seconds, scale=config.scale, validation=1, test=0,
+                      probes=config.probes, name=f"demo-corpus-seed{config.seed}")
+    ex = ExecutorSpec(jobs=config.jobs or 2)
+    f = "--force" if force else ""
+    steps = [
+        DemoStep(name="simulate + align a training corpus", output=corpus,
+                 command=_command("bench corpus --out", corpus, "--seeds", ",".join(map(str, seeds)), "--seconds",
+                          f"{config.corpus_seconds:g}", "--scale", f"{config.scale:g}", "--validation 1",
+                          f"--jobs {ex.jobs}", f),
+                 call=lambda: make_corpus(corpus, spec, executor=ex, force=force,
+                                          progress=None if config.progress else False)),
+        DemoStep(name="train SSDD (both levels, tiny)", output=run,
+                 command=_command("methods train ssdd_lstm --dataset", corpus / "training.json", "--config tiny --out", run, f),
+                 call=lambda: train_method("ssdd_lstm", dataset=corpus / "training.json", config="tiny", out=run,
+                                           force=force, progress=config.progress)),
+    ]
+    params = {m: {"weights": str(run / f"{m}.safetensors")} for m in ("ssdd_unet", "ssdd_lstm")}
+    return steps, params
 
 
 def run_demo(out: str | Path, *, seconds: float = 3.0, seed: int = 0, force: bool = False,

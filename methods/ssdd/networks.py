@@ -9,14 +9,15 @@ units (:mod:`methods.nn.normalize`):
   bottleneck) carry state from frame to frame of a sequence.
 
 Shapes: single frames ``(B, C, H, W) -> (B, 1, H, W)``; sequences ``(B, T, C, H, W) -> (B, T, 1, H, W)``.
-Any ``H, W`` works (the decoder resizes to each skip connection); a width of 16 at four levels
-keeps a 640x480 frame under 100 ms on two CPU cores (``perf/ssdd_inference.py``).
+Any ``H, W`` works (the decoder resizes to each skip connection, odd sizes are padded for the
+stem); ``perf/ssdd_inference.py`` times a 640x480 frame by width.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from methods.nn.convlstm import ConvLSTMCell
@@ -37,8 +38,11 @@ class NetConfig:
     use_mask: bool = True
     use_color: bool = False
     recurrent: list[int] = field(default_factory=list)
+    stem: int = 2
 
     def __post_init__(self) -> None:
+        if self.stem not in (1, 2, 4):
+            raise ValueError(f"model.stem must be 1, 2 or 4, got {self.stem}")
         if self.width < 2 or self.levels < 1 or self.levels > 7:
             raise ValueError(f"model.width must be >= 2 and model.levels 1..7, got {self.width}, {self.levels}")
         bad = [r for r in self.recurrent if not -self.levels <= r < self.levels]
@@ -59,15 +63,16 @@ class UNet(nn.Module):
     A cell's output is added to the level's features (the feed-forward path stays intact).
     """
 
-    def __init__(self, c_in: int, *, width: int, levels: int, recurrent: list[int] = ()) -> None:
+    def __init__(self, c_in: int, *, width: int, levels: int, recurrent: list[int] = (), stem: int = 1) -> None:
         super().__init__()
         widths = level_widths(width, levels)
         self.recurrent = list(recurrent)
-        self.inc = ConvBlock(c_in, widths[0])
+        self.stem = stem
+        self.inc = ConvBlock(c_in * stem * stem, widths[0])
         self.downs = nn.ModuleList(Down(widths[i - 1], widths[i]) for i in range(1, levels))
         self.cells = nn.ModuleDict({str(lv): ConvLSTMCell(widths[lv], widths[lv]) for lv in self.recurrent})
         self.ups = nn.ModuleList(Up(widths[i], widths[i - 1], widths[i - 1]) for i in range(levels - 1, 0, -1))
-        self.head = nn.Conv2d(widths[0], 1, 1)
+        self.head = nn.Conv2d(widths[0], stem * stem, 1)
         with torch.no_grad():   # start near the identity (small residual), but let gradients flow everywhere
             self.head.weight.mul_(0.01)
             self.head.bias.zero_()
@@ -76,6 +81,12 @@ class UNet(nn.Module):
         state = state or {}
         new: dict = {}
         feats = []
+        size = x.shape[-2:]
+        if self.stem > 1:
+            pad_h, pad_w = (-size[0]) % self.stem, (-size[1]) % self.stem
+            if pad_h or pad_w:
+                x = F.pad(x, (0, pad_w, 0, pad_h), mode="replicate")
+            x = F.pixel_unshuffle(x, self.stem)
         h = self.inc(x)
         for lv in range(len(self.downs) + 1):
             if lv > 0:
@@ -86,7 +97,10 @@ class UNet(nn.Module):
             feats.append(h)
         for up, skip in zip(self.ups, reversed(feats[:-1])):
             h = up(h, skip)
-        return self.head(h), new
+        out = self.head(h)
+        if self.stem > 1:
+            out = F.pixel_shuffle(out, self.stem)[..., :size[0], :size[1]]
+        return out, new
 
 
 def _inputs(first: torch.Tensor, others: list[torch.Tensor | None]) -> torch.Tensor:
@@ -99,7 +113,7 @@ class SSDDUNet(nn.Module):
     def __init__(self, cfg: NetConfig) -> None:
         super().__init__()
         self.cfg = cfg
-        self.unet = UNet(1 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels)
+        self.unet = UNet(1 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels, stem=cfg.stem)
 
     def forward(self, x_lq: torch.Tensor, valid: torch.Tensor | None = None, rgb: torch.Tensor | None = None) -> torch.Tensor:
         x = _inputs(x_lq, [valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])
@@ -119,7 +133,7 @@ class SSDDLSTMUNet(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.unet = UNet(2 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels,
-                         recurrent=cfg.recurrent_levels())
+                         recurrent=cfg.recurrent_levels(), stem=cfg.stem)
 
     def step(self, x_l1, x_lq, valid=None, rgb=None, state: dict | None = None) -> tuple[torch.Tensor, dict]:
         x = _inputs(x_l1, [x_lq, valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])

@@ -8,9 +8,9 @@ from bench import results as R
 from depthbench.demo import DemoConfig, run_demo
 from tests.conftest import assert_one_line_error
 
-#: Under a second of scene time at half resolution, six probe frames, two methods, no reports.
+#: Under a second of scene time at half resolution, six probe frames, two methods, no reports, no training.
 TINY = DemoConfig(seconds=0.8, seed=3, scale=0.5, methods="raw,gaussian", jobs=1, progress=False, probes=6,
-                  reports=False)
+                  reports=False, learned=False)
 
 
 @pytest.fixture(scope="module")

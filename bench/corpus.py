@@ -1,0 +1,157 @@
+"""A training corpus from the simulator: several seeds, people and balloons, different time shifts,
+each simulated and aligned exactly as a benchmark session, on the benchmark's executors.
+
+``depthbench bench corpus --out C --seeds 101-106 --validation 1 --test 1`` writes::
+
+    C/
+      sessions/<name>/     the simulated sessions (with truth/, as 'capture simulate' writes them)
+      aligned/<name>/      their aligned datasets (as 'align' writes them; truth attached, the fit never reads it)
+      training.json        the training manifest (data_manifests/training.md): every aligned dataset,
+                           its checksum and its split; the last ``test`` sequences are test, the ``validation``
+                           before them validation, the rest train
+
+One task per sequence (simulate, then align) runs wherever the :class:`bench.executors.ExecutorSpec`
+says: this process, local processes, or a Dask cluster (paths must be shared), so a lab can make an
+SSDD-size corpus (51 sequences of 30 s) on a cluster. The folder is built aside and published when
+every sequence is done: a failure leaves nothing.
+"""
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm import tqdm
+
+from bench.errors import BenchError
+from bench.executors import ExecutorSpec
+from depthbench.fsutil import check_output_free, publish_directory, staging_dir_for
+
+MANIFEST = "training.json"
+
+
+@dataclass(frozen=True)
+class CorpusSpec:
+    """What to simulate: one sequence per seed; scenes and time shifts are cycled over the seeds.
+
+    ``time_shifts_ms``: empty = drawn by the simulator within +-60 ms from each seed. ``scale``:
+    image size factor (0.5: 320x240 LQ). ``validation`` / ``test``: sequences in those splits.
+    ``probes``: HQ frames the alignment fits (None: its default).
+    """
+
+    seeds: tuple[int, ...] = (101, 102, 103, 104, 105)
+    scenes: tuple[str, ...] = ("people", "balloons")
+    seconds: float = 3.0
+    scale: float = 0.5
+    time_shifts_ms: tuple[float, ...] = ()
+    validation: int = 1
+    test: int = 0
+    probes: int | None = None
+    name: str = "sim-corpus"
+
+    def check(self) -> "CorpusSpec":
+        from capture.sim import SCENES
+
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
+            raise BenchError(f"seeds must be distinct non-negative integers, got {list(self.seeds)}")
+        bad = [s for s in self.scenes if s not in SCENES]
+        if not self.scenes or bad:
+            raise BenchError(f"scene {bad[0] if bad else ''!r} unknown (choose from {', '.join(SCENES)})")
+        if self.seconds <= 0 or self.scale <= 0:
+            raise BenchError(f"seconds and scale must be positive, got {self.seconds}, {self.scale}")
+        if self.validation < 0 or self.test < 0 or self.validation + self.test >= len(self.seeds):
+            raise BenchError(f"{len(self.seeds)} sequences leave none for training with {self.validation} "
+                             f"validation and {self.test} test sequences")
+        return self
+
+    def splits(self) -> list[str]:
+        n = len(self.seeds)
+        n_train = n - self.validation - self.test
+        return ["train"] * n_train + ["validation"] * self.validation + ["test"] * self.test
+
+
+@dataclass(frozen=True)
+class SequenceTask:
+    """Simulate one session and align it (module-level data: travels to worker processes)."""
+
+    seed: int
+    scene: str
+    seconds: float
+    scale: float
+    time_shift_us: int | None
+    session: str
+    aligned: str
+    probes: int | None = None
+
+
+def build_sequence(task: SequenceTask) -> dict:
+    """The task function: simulate + align; returns what the manifest records about the sequence."""
+    from align.pipeline import align_session
+    from capture.sim import simulate
+
+    sim = simulate(task.session, rig="lq-hq", scene=task.scene, seconds=task.seconds, seed=task.seed,
+                   time_shift_us=task.time_shift_us, scale=task.scale, progress=False, workers=1)
+    opts = {"progress": False, "workers": 1}
+    if task.probes is not None:
+        opts["probes"] = task.probes
+    align_session(task.session, task.aligned, **opts)
+    return {"scene": task.scene, "seed": task.seed, "time_shift_us": int(sim.time_shift_us)}
+
+
+def _tasks(spec: CorpusSpec, work: Path) -> list[SequenceTask]:
+    out = []
+    for i, seed in enumerate(spec.seeds):
+        scene = spec.scenes[i % len(spec.scenes)]
+        shift = round(spec.time_shifts_ms[i % len(spec.time_shifts_ms)] * 1000) if spec.time_shifts_ms else None
+        name = f"{scene}-seed{seed}"
+        out.append(SequenceTask(seed, scene, spec.seconds, spec.scale, shift, str(work / "sessions" / name),
+                                str(work / "aligned" / name), spec.probes))
+    return out
+
+
+@dataclass
+class CorpusResult:
+    out: Path
+    manifest: Path
+    sequences: int
+
+
+def make_corpus(out: str | Path, spec: CorpusSpec = CorpusSpec(), *, executor: ExecutorSpec = ExecutorSpec(jobs=1),
+                force: bool = False, progress: bool | None = None) -> CorpusResult:
+    """Simulate and align ``spec``'s sequences into ``out`` with a training manifest; see the module docstring."""
+    from align.dataset import AlignedDataset
+    from methods.nn.manifest import manifest_entry, write_manifest
+
+    spec.check()
+    executor.check()
+    out = Path(out)
+    check_output_free(out, force=force, what="corpus folder")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    work = staging_dir_for(out)
+    try:
+        tasks = _tasks(spec, work)
+        (work / "sessions").mkdir()
+        (work / "aligned").mkdir()
+        info: dict[int, dict] = {}
+        bar = tqdm(total=len(tasks), desc="corpus", unit="sequence", file=sys.stderr,
+                   disable=(None if progress is None else not progress))
+
+        def done(task: SequenceTask, result: dict) -> None:
+            info[task.seed] = result
+            bar.update(1)
+
+        try:
+            executor.make(len(tasks)).run(tasks, done, fn=build_sequence, key=lambda t: f"corpus-seed{t.seed}")
+        finally:
+            bar.close()
+        entries = [manifest_entry(AlignedDataset(t.aligned), root=work, split=split, **info[t.seed])
+                   for t, split in zip(tasks, spec.splits())]
+        write_manifest(work / MANIFEST, name=spec.name, entries=entries,
+                       created={"program": "depthbench bench corpus", "options": dataclasses.asdict(spec)})
+        publish_directory(work, out)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    return CorpusResult(out, out / MANIFEST, len(tasks))

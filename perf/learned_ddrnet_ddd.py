@@ -115,7 +115,7 @@ def main(argv=None) -> int:
         print(f"{k:24s} {v:10.1f} {v / ref:12.2f}")
     print(f"\ntraining, tiny configs, {args.threads} CPU threads (loss + backward + Adam step, median of {args.repeats}):")
     for k, v in training(args.repeats).items():
-        print(f"{k:24s} {v:10.1f} samples/s")
+        print(f"{k:24s} {v:10.3g} samples/s")
     return 0
 
 

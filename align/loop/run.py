@@ -93,6 +93,9 @@ class LoopResult:
             return
         pf.shift.time_shift_us = self.shift_us
         pf.shift.drift_ppm = self.drift_ppm
+        sd = float(np.sqrt(max(self.features.cov[6, 6], 0.0))) * 1000.0  # cluster-robust, the extended model
+        if np.isfinite(sd) and sd > 0:
+            pf.shift.std_us = sd
         if any(f.name == "clock_drift" and f.source == "found" for f in self.findings):
             pf.shift.model = "linear (loop)"
         pf.T_lq_hq = self.T_lq_hq

@@ -51,10 +51,13 @@ class LoopResult:
     correct_depth: bool
     seconds: dict = field(default_factory=dict)
     base: dict = field(default_factory=dict)  # the base fit's geometry: T_lq_hq, K_lq, shift_us, drift_ppm, t0_us
+    refit_tracks: bool = False  # duplicated LQ colour frames were taken out of the tracks
 
     @property
     def changed_geometry(self) -> bool:
-        return any(f.phase == "features" and f.source == "found" for f in self.findings)
+        """A feature effect was found, or duplicated frames left the tracks (the base fit then used
+        frames whose stamps are not their content's instant): the loop's refit replaces the base fit."""
+        return any(f.phase == "features" and f.source == "found" for f in self.findings) or bool(self.refit_tracks)
 
     def unexplained(self) -> list[Signature]:
         """Signatures of the final model that still show structure (|z| above the threshold)."""
@@ -224,7 +227,8 @@ def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, 
     T_base = setup.T_lqdepth_lqcolor.inverse() @ pf.T_lq_hq
     fl = fit_feature_effects(fd, T=T_base, shift_us=pf.shift.time_shift_us, declared=declared, options=o)
     secs["features"] = time.perf_counter() - t1
-    found = any(f.source == "found" for f in fl.findings)
+    dup_colour = ff.duplicate_positions(f"{setup.lq}/{setup.lq_color}")
+    found = any(f.source == "found" for f in fl.findings) or dup_colour.size > 0
     shift_us = fl.shift_us if found else pf.shift.time_shift_us
     drift = fl.drift_ppm if found else pf.shift.drift_ppm
     T_lq_hq = setup.T_lqdepth_lqcolor @ fl.T if found else pf.T_lq_hq
@@ -249,4 +253,5 @@ def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, 
     secs.update({f"features.{k}": v for k, v in fl.seconds.items()})
     base = {"T_lq_hq": pf.T_lq_hq, "K_lq": setup.K_lq, "shift_us": pf.shift.time_shift_us,
             "drift_ppm": pf.shift.drift_ppm, "t0_us": t0_us}
-    return LoopResult(fl, dl, ff, findings, shift_us, drift, T_lq_hq, K_lq, K_lq_color, dups, correct_depth, secs, base)
+    return LoopResult(fl, dl, ff, findings, shift_us, drift, T_lq_hq, K_lq, K_lq_color, dups, correct_depth, secs, base,
+                      bool(dup_colour.size))

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import open3d as o3d
+from numba import njit
 
 from capture.camera import Intrinsics, Transform
 from capture.sim.kernels import expose, shade_hits
@@ -141,17 +142,11 @@ class Renderer:
         vn = self._normals if vertex_normals is None else vertex_normals
         if vn is None:
             return n
-        prim = ans["primitive_ids"]
-        hit = np.isfinite(ans["t_hit"])
-        sel = np.zeros(hit.shape, bool)
-        sel[hit] = self.scene.triangle_smooth[prim[hit]]
-        if not sel.any():
-            return n
-        tri = self.scene.triangles[prim[sel]]
-        uv = ans["primitive_uvs"][sel]
-        s = (1 - uv[:, :1] - uv[:, 1:]) * vn[tri[:, 0]] + uv[:, :1] * vn[tri[:, 1]] + uv[:, 1:] * vn[tri[:, 2]]
-        out = n.copy()
-        out[sel] = s / np.maximum(np.linalg.norm(s, axis=-1, keepdims=True), 1e-12)
+        shape = ans["t_hit"].shape
+        out = np.empty(shape + (3,), np.float32)
+        _interpolate_normals(ans["t_hit"].reshape(-1), ans["primitive_ids"].reshape(-1),
+                             ans["primitive_uvs"].reshape(-1, 2), n.reshape(-1, 3), self.scene.triangles,
+                             self.scene.triangle_smooth, vn, out.reshape(-1, 3))
         return out
 
     def _still_layer(self, cam: CameraRays) -> _Layer:
@@ -207,6 +202,24 @@ class Renderer:
         ans = self._scene_at(t_s).cast_rays(o3d.core.Tensor(cam.rays), nthreads=self.nthreads)
         H, W = cam.intrinsics.shape
         return {k: v.numpy().reshape((H, W) + v.numpy().shape[1:]) for k, v in ans.items()}
+
+
+@njit(cache=True, nogil=True)
+def _interpolate_normals(t_hit, prim, uvs, facet, triangles, smooth, vn, out):
+    """``out[j]``: the facet normal of hit ``j``, or on a smooth triangle the unit vertex normals
+    ``vn`` interpolated with the hit's barycentric coordinates ``(1 - u - v, u, v)``."""
+    for j in range(t_hit.shape[0]):
+        if not np.isfinite(t_hit[j]) or not smooth[prim[j]]:
+            out[j, 0], out[j, 1], out[j, 2] = facet[j, 0], facet[j, 1], facet[j, 2]
+            continue
+        a, b, c = triangles[prim[j], 0], triangles[prim[j], 1], triangles[prim[j], 2]
+        u, v = uvs[j, 0], uvs[j, 1]
+        w = 1.0 - u - v
+        x = w * vn[a, 0] + u * vn[b, 0] + v * vn[c, 0]
+        y = w * vn[a, 1] + u * vn[b, 1] + v * vn[c, 1]
+        z = w * vn[a, 2] + u * vn[b, 2] + v * vn[c, 2]
+        norm = max(np.sqrt(x * x + y * y + z * z), 1e-12)
+        out[j, 0], out[j, 1], out[j, 2] = x / norm, y / norm, z / norm
 
 
 def _pixel_rects(bounds: np.ndarray, cam: CameraRays):

@@ -232,7 +232,7 @@ _TAPER = {"torso": 0.85, "upper_leg": 0.8, "lower_leg": 0.7, "upper_arm": 0.85, 
 
 
 def tapered_limb(r_top: float, r_bottom: float, length: float, *, segments: int = 16,
-                 cap_rings: int = 4, body_rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
+                 cap_rings: int = 3, body_rings: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A closed body segment from z = 0 down to z = -length: a hemisphere of ``r_top`` at the joint,
     a cone to ``r_bottom``, a hemisphere of ``r_bottom`` at the far end (a capsule when the radii
     are equal). Shaded smooth, it has no visible facets or seams.

@@ -20,7 +20,7 @@ from methods.nn.trainer import FitJob, seeded
 
 
 @dataclass
-class DataConfig:
+class MultiViewDataConfig:
     """``downsample``: 1, 2 or 4 (train at reduced resolution; the network is fully convolutional);
     ``preload``: keep decoded samples in memory; ``num_workers``: loader processes."""
 
@@ -39,7 +39,7 @@ class DDDConfig:
 
     model: ModelConfig = field(default_factory=ModelConfig)
     loss: LossConfig = field(default_factory=LossConfig)
-    data: DataConfig = field(default_factory=DataConfig)
+    data: MultiViewDataConfig = field(default_factory=MultiViewDataConfig)
     optim: OptimConfig = field(default_factory=OptimConfig)
 
 

@@ -16,8 +16,9 @@ means keep the weights independent of image size and batch).
   functions ``H = [1, y, z, x, xy, yz, 3z^2 - 1, zx, x^2 - y^2]`` (constant factors fold into ``l``).
 * eq. 16 ``l* = argmin_l ||B(l, N_ref, R) - I||^2`` by ridge least squares (``ridge`` added to the
   normal equations, 1e-4 as in the released code), per image, on the **reference** normals.
-* eq. 15 ``L_sh = ||B(l*, N_dt, R) - I||_2 + lambda_g ||grad B - grad I||_2``: root mean squares of the
-  rendered-minus-observed grey and of their forward differences.
+* eq. 15 ``L_sh = ||B(l*, N_dt, R) - I||_2 + lambda_g ||grad B - grad I||_2``: root mean square of the
+  rendered-minus-observed grey, plus ``lambda_g`` times the mean of the root mean squares of their
+  forward differences along x and along y.
 * eq. 18 ``L_fid = ||D_dt - D_ref||_2`` (root mean square, metres).
 * eq. 19 ``L_smo``: anisotropic total variation, mean ``|D(i+1, j) - D(i, j)|`` over vertical pairs
   plus mean ``|D(i, j+1) - D(i, j)|`` over horizontal pairs (a ramp of slopes a, b gives ``|a| + |b|``).

@@ -31,6 +31,8 @@ from bench.errors import BenchError
 OUTLIER_SIGMAS = 8.0
 #: lags (px) at which the spatial correlation of the residual is measured
 LAGS = (1, 2, 3, 4, 6, 8, 12, 16, 24)
+#: frames the spatial correlation is measured on (evenly spaced)
+CORRELATION_FRAMES = 16
 #: bins of brightness (0-1) and of texture (local standard deviation of brightness, 7x7 px) for the fill rate
 LUMINANCE_EDGES = np.linspace(0, 1, 11)
 TEXTURE_EDGES = np.array([0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.16, 0.5])
@@ -179,10 +181,12 @@ def diagnose_sensor(data: SensorFrames, *, depth_edges: np.ndarray | None = None
     res_c = np.where(outlier, np.nan, res)
     # spatial correlation first: it sets the effective number of samples per pixel
     halves = _halves(len(res_c), res_c.shape[1:])
-    rho_frames = [S.autocorrelation(r, LAGS) for r in res_c]
+    # the correlation from at most CORRELATION_FRAMES evenly spaced frames (it is a property of the sensor)
+    corr_idx = np.unique(np.linspace(0, len(res_c) - 1, min(len(res_c), CORRELATION_FRAMES)).round().astype(int))
+    rho_frames = [S.autocorrelation(res_c[i], LAGS) for i in corr_idx]
     rho, pairs = _pool_rho(rho_frames)
-    if len(res_c) >= 2:  # halves are frame subsets: reuse the per-frame correlations
-        half_rho = [[rho_frames[i] for i in range(len(res_c)) if i % 2 == k] for k in (0, 1)]
+    if len(rho_frames) >= 2:  # halves are frame subsets: reuse the per-frame correlations
+        half_rho = [[rho_frames[i] for i in range(len(rho_frames)) if i % 2 == k] for k in (0, 1)]
     else:
         half_rho = [[S.autocorrelation(r, LAGS) for r in _masked(res_c, h)] for h in halves]
     corr = _correlation_selection(rho, pairs, half_rho)

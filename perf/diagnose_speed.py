@@ -7,6 +7,9 @@ Simulates the session into a temporary folder (the simulator's truth is the refe
 times, in the same run, the reference -- reading the frames the diagnosis uses (``load``) --
 and the whole diagnosis (``load`` + :func:`bench.diagnose.diagnose` of both sensors), and prints
 seconds and their ratio. The machine may be shared: the load average is printed too.
+
+The diagnosis reads at most ``--max-frames`` evenly spaced frames per sensor (60 at 30 fps is
+2 s), so ``--seconds 2`` times the same diagnosis work as a 30 s session with less simulating.
 """
 from __future__ import annotations
 

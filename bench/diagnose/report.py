@@ -78,10 +78,11 @@ def figure(d: SensorDiagnosis) -> plt.Figure:
     a.set(title="residual vs image position", xticks=[], yticks=[])
     a = ax[1, 2]
     a.plot(d.steps[0], 1000 * d.steps[1], "o", label="median gap between distinct depths")
-    if d.fill_texture is not None:
-        b = a.twinx()
+    if d.fill_texture is not None:  # its own axes: local contrast on top, fill on the right
+        b = a.twinx().twiny()
         b.plot(d.fill_texture[0], d.fill_texture[1], "s-", color="C2")
-        b.set_ylabel("fill vs local contrast (green)")
+        b.set_xlabel("local contrast (7x7 std of brightness), green: fill")
+        b.set_ylim(0, 1.05)
     a.set(xlabel="depth (m)", ylabel="depth step (mm)", title="quantisation")
     fig.suptitle(f"{d.sensor}: {d.model} ({d.technology}), reference: {d.reference_kind}, {d.frames} frames")
     fig.tight_layout()

@@ -152,22 +152,16 @@ def test_ten_shared_lines_pass_eleven_fail_and_a_file_can_repeat_itself():
 
 
 # ----------------------------------------------------------------------------------- the product tree
-IN_PROGRESS = pytest.mark.xfail(strict=False, reason="issue 9: the helpers are still shortening functions and "
-                                                     "removing copies; the lead makes this strict when they land")
-
-
 @pytest.fixture(scope="module")
 def product_tree() -> dict[str, str]:
     return product_sources(REPO)
 
 
-@IN_PROGRESS
 def test_no_product_function_is_longer_than_80_lines(product_tree):
     found = long_functions(product_tree)
     assert not found, "functions longer than 80 lines:\n" + "\n".join(found)
 
 
-@IN_PROGRESS
 def test_no_block_of_more_than_10_lines_stands_twice_in_product_code(product_tree):
     found = duplicate_blocks(product_tree)
     assert not found, "blocks of more than 10 lines written twice:\n" + "\n".join(map(str, found))

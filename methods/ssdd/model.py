@@ -40,17 +40,26 @@ def level2_depth(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, r
     return denormalize_depth(net(x1, x, valid, rgb), **_norm(data))
 
 
-def level1_loss(data: DataConfig):
+def _mask(batch: dict, holes: bool) -> torch.Tensor:
+    """M_r of eq. 32, restricted to pixels where the LQ sensor measured depth unless ``holes``.
+
+    Without the restriction the loss is dominated by filling the LQ holes (errors of metres on a few
+    per cent of the pixels against centimetres of noise elsewhere) and the network trades a bias on
+    the measured pixels for it; inference keeps the holes anyway (``fill_holes=false``)."""
+    return batch["roi"] if holes else batch["roi"] * torch.isfinite(batch["lq_depth"])
+
+
+def level1_loss(data: DataConfig, *, holes: bool = False):
     """Eq. 32 loss of level 1 on a training batch (keys of :mod:`methods.nn.data`)."""
     def loss(net, batch):
         pred = level1_depth(net, batch["lq_depth"], batch["color"], data)
-        return masked_l1(pred, batch["reference"], batch["roi"], batch["valid"])
+        return masked_l1(pred, batch["reference"], _mask(batch, holes), batch["valid"])
     return loss
 
 
-def level2_loss(data: DataConfig):
+def level2_loss(data: DataConfig, *, holes: bool = False):
     """Eq. 32 loss of level 2 over every frame of a batch of sequences with a ``level1`` layer."""
     def loss(net, batch):
         pred = level2_depth(net, batch["level1"], batch["lq_depth"], batch["color"], data)
-        return masked_l1(pred, batch["reference"], batch["roi"], batch["valid"])
+        return masked_l1(pred, batch["reference"], _mask(batch, holes), batch["valid"])
     return loss

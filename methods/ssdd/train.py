@@ -60,7 +60,9 @@ def _samples(datasets, data, *, seed: int, train: bool, extra=None) -> AlignedSa
 
 def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset], validation: list[AlignedDataset],
                 folder: str, name: str) -> SSDDUNet:
-    job = FitJob(name=name, model=seeded(lambda: SSDDUNet(cfg.model), cfg.optim.seed), loss=level1_loss(cfg.data),
+    holes = ctx.config.loss_on_holes
+    job = FitJob(name=name, model=seeded(lambda: SSDDUNet(cfg.model), cfg.optim.seed),
+                 loss=level1_loss(cfg.data, holes=holes),
                  train=_samples(train, cfg.data, seed=cfg.optim.seed, train=True),
                  validation=_samples(validation, cfg.data, seed=cfg.optim.seed, train=False),
                  optim=cfg.optim, folder=ctx.out / folder, num_workers=cfg.data.num_workers,
@@ -138,7 +140,7 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     val_preds = {ds.checksum: predict_level1(final, ds, cfg.level1) for ds in validation}
     l2 = cfg.level2
     job = FitJob(name="level 2", model=seeded(lambda: SSDDLSTMUNet(l2.model), l2.optim.seed),
-                 loss=level2_loss(l2.data),
+                 loss=level2_loss(l2.data, holes=cfg.loss_on_holes),
                  train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof}),
                  validation=_samples(validation, l2.data, seed=l2.optim.seed, train=False,
                                      extra={"level1": val_preds}),

@@ -34,8 +34,7 @@ def _make_module():
 
 @pytest.fixture(scope="module")
 def px():
-    with np.load(FIXTURE / "pixels.npz") as z:
-        return {k: z[k] for k in z.files}
+    return _make_module().pixels()   # the seeded pixels the fixture's frames were written from
 
 
 def _metres(depth_m, unit):
@@ -77,7 +76,7 @@ def test_old_aligned_and_denoised_read_to_the_pixel(px):
 
 
 def _files(root: Path) -> dict[str, bytes]:
-    skip = {"denoised.json", "opencv_version.txt", "make.py", "pixels.npz"}  # denoised.json holds the time
+    skip = {"denoised.json", "opencv_version.txt", "make.py"}  # denoised.json holds the time
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
             if p.is_file() and p.name not in skip}
 

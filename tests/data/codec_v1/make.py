@@ -87,7 +87,6 @@ def main() -> None:
 
     for name in ("session", "aligned", "denoised", "sim"):
         shutil.rmtree(HERE / name, ignore_errors=True)
-    np.savez_compressed(HERE / "pixels.npz", **pixels())
     write_fixture(HERE, encode_png16=encode_png16, encode_color=encode_color)
     (HERE / "opencv_version.txt").write_text(cv2.__version__ + "\n")
 

@@ -162,7 +162,7 @@ def tv_loss(d: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
 
 
 # ------------------------------------------------------------------------------------- eq. 13-20
-@dataclass(frozen=True)
+@dataclass
 class DDRNetWeights:
     """The lambdas of eq. 13, 14, 15 and 20 (``lam`` is eq. 20's lambda)."""
 

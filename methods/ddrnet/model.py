@@ -11,7 +11,7 @@ the L2 terms with metre-sized "errors". See :mod:`methods.ddrnet.losses` for the
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import torch
 import torch.nn.functional as F
@@ -37,20 +37,13 @@ class ModelConfig:
 
 
 @dataclass
-class LossConfig:
+class LossConfig(DDRNetWeights):
     """The lambdas of eq. 13-20 (see :class:`methods.ddrnet.losses.DDRNetWeights`), the albedo
     choice (``ratio`` or ``uniform``), ``released_terms`` (drop eq. 12 and 19 as the released code) and
     ``max_ref_diff_m`` (pixels whose reference differs more from the input are left out; 0: keep all),
     ``foreground_only`` (losses inside the foreground mask ``W`` as the paper; false: every pixel with a
     reference, more signal per crop when the foreground is small)."""
 
-    rec: float = 1.0
-    dot: float = 30.0
-    sh: float = 0.1
-    grad: float = 1.0
-    fid: float = 1.0
-    smo: float = 0.01
-    lam: float = 1.0
     albedo: str = "ratio"
     released_terms: bool = False
     max_ref_diff_m: float = 0.3
@@ -59,13 +52,13 @@ class LossConfig:
     def __post_init__(self) -> None:
         if self.albedo not in ALBEDOS:
             raise ValueError(f"loss.albedo must be one of {', '.join(ALBEDOS)}, got {self.albedo!r}")
-        for k in ("rec", "dot", "sh", "grad", "fid", "smo", "lam", "max_ref_diff_m"):
+        for k in [f.name for f in fields(DDRNetWeights)] + ["max_ref_diff_m"]:
             if getattr(self, k) < 0:
                 raise ValueError(f"loss.{k} must be >= 0, got {getattr(self, k)}")
 
     def module(self) -> DDRNetLoss:
-        w = DDRNetWeights(rec=self.rec, dot=self.dot, sh=self.sh, grad=self.grad, fid=self.fid, smo=self.smo, lam=self.lam)
-        return DDRNetLoss(weights=w, albedo=self.albedo, released_terms=self.released_terms)
+        lambdas = DDRNetWeights(**{f.name: getattr(self, f.name) for f in fields(DDRNetWeights)})
+        return DDRNetLoss(weights=lambdas, albedo=self.albedo, released_terms=self.released_terms)
 
 
 def build(model: ModelConfig, *, refine: bool) -> DDRNet:

@@ -4,7 +4,7 @@ import torch
 
 @pytest.fixture(autouse=True)
 def _one_torch_thread():
-    """Small networks: one thread is faster than two on a shared 2-core machine (spinning OpenMP threads)."""
+    """Tiny networks (every torch test under tests/methods): one thread is faster than two, and spinning OpenMP threads waste a shared CPU."""
     n = torch.get_num_threads()
     torch.set_num_threads(1)
     yield

@@ -40,6 +40,9 @@ def add_parser(sub) -> None:
                    help="record the effects in truth/ only, not in session.json (later stages must find them)")
     p.add_argument("--time-shift-ms", type=float, default=None, metavar="MS",
                    help="true LQ-vs-HQ host clock shift in ms (default: drawn within +-60 ms)")
+    p.add_argument("--frame-phase-ms", type=float, default=None, metavar="MS",
+                   help="how long after each HQ frame the LQ frame is exposed, ms, within one LQ frame period "
+                        "either way: how far apart a pair's frames fall (default: drawn with the seed)")
     p.add_argument("--static", action="store_true", help="nothing moves (the time shift is then unobservable)")
     p.add_argument("--scale", type=float, default=1.0,
                    help="multiply every image size, e.g. 0.25 for quick runs (default: %(default)s)")
@@ -62,7 +65,8 @@ def run(args) -> int:
     r = simulate(args.out, rig=args.rig, scene=args.scene, seconds=args.seconds, seed=args.seed, effects=args.effect,
                  undeclared=args.undeclared, force=args.force, time_shift_us=shift, static=args.static,
                  scale=args.scale, lq_fps=args.lq_fps, hq_fps=args.hq_fps, color_encoding=args.color_format,
-                 progress=not args.no_progress, workers=args.workers)
+                 progress=not args.no_progress, workers=args.workers,
+                 frame_phase_us=None if args.frame_phase_ms is None else args.frame_phase_ms * 1000)
     frames = ", ".join(f"{s}: {n} frames ({r.dropped[s]} dropped)" for s, n in r.frames.items())
     print(f"wrote {r.root} ({r.rig}, {r.scene}, {r.seconds:g} s; {frames}) in {r.elapsed_s:.1f} s "
           f"[{r.scene_frames_per_s:.1f} frames of scene time/s]")

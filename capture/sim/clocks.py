@@ -17,6 +17,10 @@ the frame numbers that remain have gaps. A delivered frame (not the first) is, w
 content, hence same bytes) under its own number and stamps; its ``scene_time_us`` is then the
 scene time of that content and ``source_frame_number`` names the frame it copies.
 
+How far apart in scene time the LQ and HQ frames fall (the *frame phase*, what a time-synchronised
+pair of frames still differs by) comes from the two sensors' ``phase_us``: drawn with the seed, or
+set with ``frame_phase_us`` in :func:`draw_clocks`. The time shift moves stamps, not exposures.
+
 Host timestamps are what alignment uses (``time_base: "host"``): the *host* clock of a sensor
 is the clock of the computer that received its frames. The reference sensor (HQ, or ``view0``
 without one) has ``host_rate = 1``; another sensor X is offset by ``host_offset_us[X] -
@@ -34,7 +38,7 @@ Example:
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -143,13 +147,18 @@ def frame_schedule(clock: Clock, *, seconds: float, rng: np.random.Generator) ->
 
 def draw_clocks(sensors: dict[str, float], *, reference: str, target: str | None, rng: np.random.Generator,
                 time_shift_us: int | None = None, drift_ppm: float = 0.0, drop_rate: float = 0.0,
-                jitter_bound_us: int = DEFAULT_JITTER_US, duplicate_rate: float = 0.0) -> dict[str, Clock]:
+                jitter_bound_us: int = DEFAULT_JITTER_US, duplicate_rate: float = 0.0,
+                frame_phase_us: float | None = None) -> dict[str, Clock]:
     """Draw a clock for each sensor (``{sensor: fps}``).
 
     ``reference`` gets host offset ``t0`` (an epoch-like time) and no host drift; ``target`` (the LQ
     sensor the effects act on) is shifted by ``time_shift_us`` (drawn within +-60 ms if None) and
     drifts by ``drift_ppm`` and duplicates frames at ``duplicate_rate``; other sensors get their own
-    shift within +-60 ms.
+    shift within +-60 ms. ``frame_phase_us``: the target's frames are exposed this long after the
+    reference's (scene time: the target's ``phase_us`` is the reference's plus this, modulo the
+    target's period, so at equal frame rates every target frame falls ``frame_phase_us`` mod one
+    period after a reference frame, up to the devices' drift of +-20 ppm); ``None``: each phase is
+    drawn uniformly within one period (the same random numbers are drawn either way).
     """
     t0 = 1_700_000_000_000_000 + int(rng.integers(0, 365 * 86_400 * 10**6))
     clocks = {}
@@ -165,4 +174,8 @@ def draw_clocks(sensors: dict[str, float], *, reference: str, target: str | None
             device_drift_ppm=float(np.round(rng.uniform(-20, 20), 3)), host_offset_us=t0 + shift,
             host_drift_ppm=float(drift_ppm) if sid == target else 0.0, host_jitter_bound_us=int(jitter_bound_us),
             drop_rate=float(drop_rate), duplicate_rate=float(duplicate_rate) if sid == target else 0.0)
+    if frame_phase_us is not None and target in clocks and reference in clocks:
+        c = clocks[target]
+        phase = float(np.mod(clocks[reference].phase_us + float(frame_phase_us), c.period_us))
+        clocks[target] = replace(c, phase_us=phase)
     return clocks

@@ -67,7 +67,8 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
              effects=None, undeclared: bool = False, force: bool = False, time_shift_us: int | None = None,
              static: bool = False, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: float = 30.0,
              color_encoding: str = "auto", progress: bool = True, name: str | None = None,
-             workers: int | None = None, reference: bool = False) -> SimulationResult:
+             workers: int | None = None, reference: bool = False,
+             frame_phase_us: float | None = None) -> SimulationResult:
     """Simulate rig ``rig`` filming scene ``scene`` for ``seconds`` and write a session to ``out``.
 
     Args:
@@ -79,6 +80,10 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         undeclared: write the effects to ``truth/`` only, not to ``session.json``.
         time_shift_us: the true Delta (µs) of the target (LQ) host clock against the reference (HQ);
             drawn uniformly within +-60 ms when None.
+        frame_phase_us: how long after each HQ (reference) frame the LQ (target) frame is exposed, in
+            scene time, within one LQ period either way (:func:`capture.sim.clocks.draw_clocks`);
+            drawn with the seed when None. It sets how far apart in time a pair's two frames fall
+            (the time shift does not: it moves the stamps, not the exposures).
         static: freeze the scene (the time shift is then unobservable).
         scale: multiply every image size (e.g. 0.25 for tiny tests). lq_fps, hq_fps: frame rates.
         color_encoding: ``png`` or ``jpeg`` for every colour stream; ``auto``: PNG for LQ, JPEG for HQ.
@@ -92,7 +97,7 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
     started = time.perf_counter()
     plan = make_plan(rig=rig, scene=scene, seconds=seconds, seed=seed, effects=effects, undeclared=undeclared,
                      time_shift_us=time_shift_us, static=static, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps,
-                     color_encoding=color_encoding, name=name)
+                     color_encoding=color_encoding, name=name, frame_phase_us=frame_phase_us)
     try:
         writer = SessionWriter(out, session_manifest(plan), force=force, staged=True)
     except OSError as exc:
@@ -121,17 +126,18 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
 # ----------------------------------------------------------------------------- planning
 def make_plan(*, rig: str, scene: str, seconds: float, seed: int, effects, undeclared: bool,
               time_shift_us: int | None, static: bool, scale: float, lq_fps: float, hq_fps: float,
-              color_encoding: str = "auto", name: str | None = None) -> Plan:
+              color_encoding: str = "auto", name: str | None = None, frame_phase_us: float | None = None) -> Plan:
     """Check the options and decide everything but the pixels: rig, clocks, which frames exist."""
     effects = parse_effects(effects)
     _check_options(seconds=seconds, seed=seed, time_shift_us=time_shift_us, color_encoding=color_encoding)
+    _check_frame_phase(frame_phase_us, lq_fps)
     built = _apply_lens_effect(build_rig(rig, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps), effects)
     build_scene(scene, seed=seed)  # validates the name early, before anything is written
     rng = np.random.default_rng([int(seed), 1])
     clocks = draw_clocks({s.id: s.fps for s in built.sensors}, reference=built.reference, target=built.target,
                          rng=rng, time_shift_us=time_shift_us, drift_ppm=effects.get("clock_drift_ppm", 0.0),
                          drop_rate=effects.get("frame_drop_rate", 0.0),
-                         duplicate_rate=effects.get("frame_duplicate_rate", 0.0))
+                         duplicate_rate=effects.get("frame_duplicate_rate", 0.0), frame_phase_us=frame_phase_us)
     schedules = {sid: frame_schedule(c, seconds=seconds, rng=np.random.default_rng([int(seed), 2, i]))
                  for i, (sid, c) in enumerate(clocks.items())}
     return Plan(built, scene, int(seed), float(seconds), bool(static), float(scale), effects, not undeclared,
@@ -147,6 +153,18 @@ def _check_options(*, seconds: float, seed: int, time_shift_us, color_encoding: 
         raise SimulationError(f"--time-shift-ms: {time_shift_us / 1000:g} ms is beyond +-600 ms")
     if color_encoding not in COLOR_ENCODINGS:
         raise SimulationError(f"--color-format: {color_encoding!r} is not one of {', '.join(COLOR_ENCODINGS)}")
+
+
+def _check_frame_phase(frame_phase_us, lq_fps) -> None:
+    if frame_phase_us is None:
+        return
+    period_ms = 1000.0 / lq_fps if isinstance(lq_fps, (int, float)) and lq_fps > 0 else float("inf")
+    try:
+        ms = float(frame_phase_us) / 1000
+    except (TypeError, ValueError):
+        ms = float("nan")
+    if not abs(ms) < period_ms:
+        raise SimulationError(f"--frame-phase-ms: {ms:g} ms is not within one LQ frame period (+-{period_ms:.4g} ms)")
 
 
 def _apply_lens_effect(rig: Rig, effects: dict[str, float]) -> Rig:

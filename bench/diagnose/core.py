@@ -413,6 +413,8 @@ def derived_parameters(d: SensorDiagnosis, data: SensorFrames) -> dict:
     out["correlation_px_fit"] = cg.params.get("s_px")
     out["outlier_fraction"] = d.outlier_fraction
     out["fill_rate"] = d.fill_rate
+    # the pixels the simulator parameters are given in: the matcher's for stereo, else the image's
+    out["native_focal_px"] = float(data.stereo_focal_px or data.intrinsics.fx)
     if d.bias_models is not None:
         out["bias_model"] = d.bias_models.chosen
         out["bias_params"] = d.bias_models.best.params

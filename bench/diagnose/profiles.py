@@ -6,7 +6,9 @@ Each ``REPORT`` is a folder written by ``depthbench bench diagnose CAPTURE --out
 its ``diagnosis.json`` holds, per sensor, the fitted parameters and the noise model kept after
 the sim-to-real stages (each effect kept only where it brought the simulated twin closer without
 making any statistic worse). The profile is that kept model, with its provenance: the capture,
-the stages kept and rejected, the fitted values with their errors, and the distances.
+the stages kept and rejected, the fitted values with their errors, and the distances; and
+``native_focal_px``, the focal length (px) of the pixels the parameters are given in (the stereo
+matcher's), which ``capture.sim.noise.sensor_profile(name, focal_px=...)`` converts from.
 """
 from __future__ import annotations
 
@@ -38,7 +40,10 @@ def profile_from_report(name: str, report: Path) -> dict:
     keep = ("subpixel_px", "subpixel_px_error", "floor_quadratic_subpixel_px", "noise_floor_m", "fB_px_m",
             "correlation_px", "outlier_fraction", "fill_rate", "sigma_linear_a_m", "sigma_linear_b", "board_model",
             "board_params")
-    return {"model": params["model"], "params": params, "provenance": {
+    native = d["derived"].get("native_focal_px") or (d["derived"].get("fB_px_m") or 0) / (params.get("baseline_m") or 1)
+    if not native:
+        raise BenchError(f"{path}: no native focal length of {sensor} (re-run 'bench diagnose' on the capture)")
+    return {"model": params["model"], "native_focal_px": float(native), "params": params, "provenance": {
         "capture": diag["source"], "sensor": sensor, "sensor_model": d["model"], "report": str(report),
         "reference": d["reference"], "frames": d["frames"], "sigma_model_chosen": d["sigma_models"]["chosen"],
         "fitted": {k: d["derived"][k] for k in keep if k in d["derived"]},

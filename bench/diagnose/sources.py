@@ -110,10 +110,21 @@ def load_session(root: Path, *, max_frames: int) -> list[SensorFrames]:
         baseline = noise.get("baseline_m") or _baseline(info.model)
         out.append(SensorFrames(sid, info.model, tech, K, depth, ref, "truth" if truth is not None else "planes",
                                 luminance=lum, stereo_focal_px=K.fx if baseline else None, baseline_m=baseline,
-                                depth_unit_m=float(info.streams["depth"].depth_unit_m or 0.001), source=str(root)))
+                                depth_unit_m=float(info.streams["depth"].depth_unit_m or 0.001), source=str(root),
+                                notes=_profile_notes(noise)))
     if not out:
         raise BenchError(f"{root}: the session has no depth stream")
     return out
+
+
+def _profile_notes(noise: dict) -> list[str]:
+    """What the simulator says about a measured sensor profile it used (``noise.profile``)."""
+    prof = noise.get("profile")
+    if not isinstance(prof, dict):
+        return []
+    return [f"simulated with the sensor profile {prof.get('name')!r} (its pixel parameters x "
+            f"{float(prof.get('pixel_factor', float('nan'))):.4g} from its native focal length "
+            f"{float(prof.get('native_focal_px', float('nan'))):.6g} px)"]
 
 
 def _technology(model: str) -> str:

@@ -16,9 +16,15 @@ EPILOG = """effects (--effect NAME=VALUE, repeatable; they act on the LQ sensor 
   frame_duplicate_rate  [0, 0.5]       probability that an LQ frame repeats its predecessor's image
 Declared effects are written to session.json; with --undeclared only to truth/truth.json.
 
+sensor profiles (--lq-profile / --hq-profile NAME): noise models measured on real captures by
+'depthbench bench diagnose' (capture/sim/sensor_profiles.json); their pixel parameters are
+converted to the simulated image's focal length (--scale included), so the depth error is the
+real sensor's; the profile is recorded in session.json (sensors.X.noise.profile) and truth/.
+
 example:
   depthbench capture simulate --rig lq-hq --scene people --seconds 3 --seed 1 --out sim1 \\
       --effect depth_scale=1.02 --undeclared
+  depthbench capture simulate --rig lq-hq --seconds 3 --out sim2 --lq-profile D435 --hq-profile "Azure Kinect"
 """
 
 
@@ -48,6 +54,12 @@ def add_parser(sub) -> None:
                    help="multiply every image size, e.g. 0.25 for quick runs (default: %(default)s)")
     p.add_argument("--lq-fps", type=float, default=30.0, help="frame rate of the LQ / view sensors (default: %(default)s)")
     p.add_argument("--hq-fps", type=float, default=30.0, help="frame rate of the HQ sensor (default: %(default)s)")
+    p.add_argument("--lq-profile", default=None, metavar="NAME",
+                   help="noise of the LQ / view sensors from a measured sensor profile (D435, D415, Kinect v1; "
+                        "capture/sim/sensor_profiles.json; default: the built-in D415-like model)")
+    p.add_argument("--hq-profile", default=None, metavar="NAME",
+                   help="noise of the HQ sensor from a measured time-of-flight profile (Azure Kinect; "
+                        "default: the built-in Kinect v2 / Azure-like model)")
     p.add_argument("--color-format", choices=("auto", "png", "jpeg"), default="auto",
                    help="encoding of the colour streams; auto: PNG for LQ, JPEG for HQ as Azure Kinect records (default: %(default)s)")
     p.add_argument("--workers", type=int, default=None,
@@ -65,7 +77,8 @@ def run(args) -> int:
     r = simulate(args.out, rig=args.rig, scene=args.scene, seconds=args.seconds, seed=args.seed, effects=args.effect,
                  undeclared=args.undeclared, force=args.force, time_shift_us=shift, static=args.static,
                  scale=args.scale, lq_fps=args.lq_fps, hq_fps=args.hq_fps, color_encoding=args.color_format,
-                 progress=not args.no_progress, workers=args.workers,
+                 progress=not args.no_progress, workers=args.workers, lq_profile=args.lq_profile,
+                 hq_profile=args.hq_profile,
                  frame_phase_us=None if args.frame_phase_ms is None else args.frame_phase_ms * 1000)
     frames = ", ".join(f"{s}: {n} frames ({r.dropped[s]} dropped)" for s, n in r.frames.items())
     print(f"wrote {r.root} ({r.rig}, {r.scene}, {r.seconds:g} s; {frames}) in {r.elapsed_s:.1f} s "

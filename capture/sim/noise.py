@@ -43,7 +43,7 @@ Both models list their parameters in ``to_dict()``, which the simulator writes t
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import cv2
@@ -130,19 +130,62 @@ def profile_names() -> list[str]:
     return list(_profiles())
 
 
-def sensor_profile(name: str) -> StereoNoise | TofNoise:
+def sensor_profile(name: str, *, focal_px: float | None = None) -> StereoNoise | TofNoise:
     """The noise model of a real sensor as measured on its capture (see ``sensor_profiles.json``).
 
-    The parameters are in the sensor's native depth pixels; its geometry (``baseline_m``) is
-    part of the profile.
+    The stored parameters are in the sensor's native depth pixels (the matcher's focal length
+    :func:`profile_focal_px`, e.g. 639.04 px for the D435 at 1280x720); its geometry
+    (``baseline_m``) is part of the profile. ``focal_px``: the focal length (px) of the simulated
+    depth image the model will act on; the pixel parameters are then converted to its pixels
+    (:func:`in_pixels` with ``focal_px / profile_focal_px(name)``), which keeps the depth error
+    (``z**2 subpixel_px / (f B)``), the quantisation step in depth and the angular correlation
+    of the real sensor. None: native pixels.
     """
+    entry = _profile_entry(name)
+    cls = TofNoise if entry["model"] == "tof" else StereoNoise
+    known = {f.name for f in fields(cls)}
+    noise = cls(**{k: v for k, v in entry["params"].items() if k in known and k != "model"})
+    return noise if focal_px is None else in_pixels(noise, float(focal_px) / profile_focal_px(name))
+
+
+def profile_focal_px(name: str) -> float:
+    """The native focal length (px) of profile ``name``: the pixels its parameters are given in."""
+    entry = _profile_entry(name)
+    focal = entry.get("native_focal_px")
+    if not (isinstance(focal, (int, float)) and focal > 0):
+        raise SimulationError(f"sensor profile {name!r}: no native_focal_px in {PROFILES_PATH.name}")
+    return float(focal)
+
+
+def in_pixels(noise: StereoNoise | TofNoise, factor: float) -> StereoNoise | TofNoise:
+    """``noise`` for an image whose pixels are ``factor`` of the model's (``factor`` = new focal
+    length / old focal length, e.g. 0.25 for a quarter-size image).
+
+    Disparities scale with the focal length, so the disparity noise (``subpixel_px``), its step
+    and offset, the edge threshold (a disparity range) scale by ``factor``; so do the lengths in
+    pixels (``correlation_px``, ``texture_window_px``: rounded to an odd size, at least 3). Depth
+    and luminance parameters are unchanged; so is the depth error ``z**2 subpixel_px / (f B)``.
+
+    >>> n = in_pixels(StereoNoise(subpixel_px=0.08, correlation_px=2.0), 0.5)
+    >>> n.subpixel_px, n.disparity_step_px, n.correlation_px, n.texture_window_px
+    (0.04, 0.015625, 1.0, 3)
+    """
+    if not factor > 0:
+        raise SimulationError(f"pixel factor {factor} must be positive")
+    if isinstance(noise, TofNoise):
+        return replace(noise, correlation_px=noise.correlation_px * factor)
+    window = max(3, 2 * int(round((noise.texture_window_px * factor - 1) / 2)) + 1)
+    return replace(noise, subpixel_px=noise.subpixel_px * factor, disparity_step_px=noise.disparity_step_px * factor,
+                   disparity_offset_px=noise.disparity_offset_px * factor,
+                   edge_threshold_px=noise.edge_threshold_px * factor, correlation_px=noise.correlation_px * factor,
+                   texture_window_px=window)
+
+
+def _profile_entry(name: str) -> dict:
     profiles = _profiles()
     if name not in profiles:
         raise SimulationError(f"sensor profile {name!r} is unknown (known: {', '.join(profiles) or 'none'})")
-    entry = profiles[name]
-    cls = TofNoise if entry["model"] == "tof" else StereoNoise
-    known = {f.name for f in fields(cls)}
-    return cls(**{k: v for k, v in entry["params"].items() if k in known and k != "model"})
+    return profiles[name]
 
 
 def _profiles() -> dict:

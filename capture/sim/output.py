@@ -80,7 +80,7 @@ def _sensor(plan: Plan, spec: SensorSpec) -> dict:
         "clock": {"device_timestamp": "the sensor's own oscillator at exposure (its own time domain)",
                   "host_timestamp": "arrival at the recording computer (the time base alignment uses)",
                   "hardware_sync": False},
-        "noise": spec.noise.to_dict() | {"color_noise_dn": spec.color_noise_dn},
+        "noise": spec.noise_dict(),
     }
 
 
@@ -143,7 +143,7 @@ def _truth_sensor(s: SensorSpec) -> dict:
             "T_world_depth": s.T_world_depth.to_list(), "T_world_color": s.T_world_color.to_list(),
             "T_depth_color": s.T_depth_color.to_list(),
             "depth_intrinsics": s.depth.to_dict(), "color_intrinsics": s.color.to_dict(),
-            "depth_unit_m": s.depth_unit_m, "noise": s.noise.to_dict() | {"color_noise_dn": s.color_noise_dn},
+            "depth_unit_m": s.depth_unit_m, "noise": s.noise_dict(),
             "frames": f"{s.id}/frames.csv"}
 
 

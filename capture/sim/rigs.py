@@ -16,6 +16,15 @@ Rigs (``RIGS``):
   (1.2 m wide, 1.0 m tall), toed in towards the middle of the room.
 * ``multiview4-hq``: the same plus the HQ sensor ``hq`` in the middle of the H.
 
+Sensor profiles (``lq_profile`` / ``hq_profile``): the noise model of a real sensor measured by
+``depthbench bench diagnose`` (``capture/sim/sensor_profiles.json``: ``D435``, ``D415``,
+``Kinect v1`` for the stereo LQ / view sensors, ``Azure Kinect`` for the time-of-flight HQ one)
+replaces the default noise; the cameras (image size, focal length, poses) stay the rig's. The
+profile's pixel parameters are native to the real sensor's matcher (``native_focal_px``) and are
+converted to the simulated depth image's focal length, scale included
+(:func:`capture.sim.noise.sensor_profile`), so the depth error at a given depth is the real
+sensor's at any ``scale``.
+
 Example:
     >>> rig = build_rig("lq-hq")
     >>> [s.id for s in rig.sensors], rig.reference, rig.target
@@ -32,7 +41,7 @@ import numpy as np
 
 from capture.camera import Intrinsics, Transform
 from capture.sim.errors import SimulationError
-from capture.sim.noise import StereoNoise, TofNoise
+from capture.sim.noise import StereoNoise, TofNoise, profile_focal_px, profile_names, sensor_profile
 
 RIGS = ("lq-hq", "multiview4", "multiview4-hq")
 
@@ -54,6 +63,16 @@ class SensorSpec:
     depth_unit_m: float = 0.001
     color_noise_dn: float = 1.5
     serial: str = ""
+    profile: str = ""
+
+    def noise_dict(self) -> dict:
+        """The noise model as written to ``session.json`` and ``truth/`` (with the sensor profile
+        and its pixel conversion when one is used)."""
+        d = self.noise.to_dict() | {"color_noise_dn": self.color_noise_dn}
+        if self.profile:
+            native = profile_focal_px(self.profile)
+            d["profile"] = {"name": self.profile, "native_focal_px": native, "pixel_factor": self.depth.fx / native}
+        return d
 
     @property
     def T_world_color(self) -> Transform:
@@ -132,8 +151,13 @@ def _hq_sensor(pose: Transform, *, fps: float, scale: float) -> SensorSpec:
 LQ_T_HQ = Transform.from_rotvec((0.006, -0.031, 0.004), (0.125, 0.011, -0.006))
 
 
-def build_rig(name: str, *, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: float = 30.0) -> Rig:
-    """Build rig ``name`` (one of :data:`RIGS`); ``scale`` multiplies every image size (tiny tests)."""
+def build_rig(name: str, *, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: float = 30.0,
+              lq_profile: str | None = None, hq_profile: str | None = None) -> Rig:
+    """Build rig ``name`` (one of :data:`RIGS`); ``scale`` multiplies every image size (tiny tests).
+
+    ``lq_profile`` / ``hq_profile``: a measured sensor profile (:func:`capture.sim.noise.profile_names`)
+    for the LQ / view sensors (stereo) and the HQ sensor (time of flight); None: the default noise.
+    """
     if name not in RIGS:
         raise SimulationError(f"--rig: unknown rig {name!r} (choose from {', '.join(RIGS)})")
     if not (0.05 <= scale <= 2.0):
@@ -141,6 +165,31 @@ def build_rig(name: str, *, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: fl
     for what, fps in (("--lq-fps", lq_fps), ("--hq-fps", hq_fps)):
         if not (1.0 <= fps <= 120.0):
             raise SimulationError(f"{what}: {fps} is outside [1, 120] frames per second")
+    rig = _build_geometry(name, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps)
+    for option, profile, role in (("--lq-profile", lq_profile, "stereo"), ("--hq-profile", hq_profile, "tof")):
+        if profile is not None:
+            rig = _with_profile(rig, profile, option=option, model=role)
+    return rig
+
+
+def _with_profile(rig: Rig, profile: str, *, option: str, model: str) -> Rig:
+    """``rig`` with every sensor of noise model ``model`` using the measured profile ``profile``."""
+    names = profile_names()
+    if profile not in names:
+        raise SimulationError(f"{option}: unknown sensor profile {profile!r} (choose from {', '.join(names)})")
+    if sensor_profile(profile).model != model:
+        fits = [n for n in names if sensor_profile(n).model == model]
+        raise SimulationError(f"{option}: profile {profile!r} is not a {model} sensor (choose from {', '.join(fits)})")
+    targets = [s for s in rig.sensors if s.noise.model == model]
+    if not targets:
+        raise SimulationError(f"{option}: rig {rig.name!r} has no {model} sensor")
+    for s in targets:
+        noise = sensor_profile(profile, focal_px=s.depth.fx)
+        rig = rig.with_sensor(replace(s, noise=noise, profile=profile, model=f"{profile} profile (simulated)"))
+    return rig
+
+
+def _build_geometry(name: str, *, scale: float, lq_fps: float, hq_fps: float) -> Rig:
     if name == "lq-hq":
         T_world_lq = look_at((0.0, 0.0, 1.3), (0.0, 3.0, 1.0))
         lq = _lq_sensor("lq", "lq", T_world_lq, fps=lq_fps, scale=scale, serial="SIM-LQ-0001")

@@ -68,7 +68,8 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
              static: bool = False, scale: float = 1.0, lq_fps: float = 30.0, hq_fps: float = 30.0,
              color_encoding: str = "auto", progress: bool = True, name: str | None = None,
              workers: int | None = None, reference: bool = False,
-             frame_phase_us: float | None = None) -> SimulationResult:
+             frame_phase_us: float | None = None, lq_profile: str | None = None,
+             hq_profile: str | None = None) -> SimulationResult:
     """Simulate rig ``rig`` filming scene ``scene`` for ``seconds`` and write a session to ``out``.
 
     Args:
@@ -87,6 +88,9 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         static: freeze the scene (the time shift is then unobservable).
         scale: multiply every image size (e.g. 0.25 for tiny tests). lq_fps, hq_fps: frame rates.
         color_encoding: ``png`` or ``jpeg`` for every colour stream; ``auto``: PNG for LQ, JPEG for HQ.
+        lq_profile, hq_profile: measured sensor profile of the LQ / view sensors and of the HQ
+            sensor (``D435``, ``D415``, ``Kinect v1``; ``Azure Kinect``); None: default noise
+            (:func:`capture.sim.rigs.build_rig`). Written to ``sensors.X.noise.profile``.
         workers: rendering processes (None: 1 on two cores, else one per core, at most 4, for
             runs of 240+ frames; 1: render in this process; the bytes do not depend on it).
         reference: render the straightforward way (one process, every pixel every frame, encoding
@@ -97,7 +101,8 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
     started = time.perf_counter()
     plan = make_plan(rig=rig, scene=scene, seconds=seconds, seed=seed, effects=effects, undeclared=undeclared,
                      time_shift_us=time_shift_us, static=static, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps,
-                     color_encoding=color_encoding, name=name, frame_phase_us=frame_phase_us)
+                     color_encoding=color_encoding, name=name, frame_phase_us=frame_phase_us, lq_profile=lq_profile,
+                     hq_profile=hq_profile)
     try:
         writer = SessionWriter(out, session_manifest(plan), force=force, staged=True)
     except OSError as exc:
@@ -126,12 +131,14 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
 # ----------------------------------------------------------------------------- planning
 def make_plan(*, rig: str, scene: str, seconds: float, seed: int, effects, undeclared: bool,
               time_shift_us: int | None, static: bool, scale: float, lq_fps: float, hq_fps: float,
-              color_encoding: str = "auto", name: str | None = None, frame_phase_us: float | None = None) -> Plan:
+              color_encoding: str = "auto", name: str | None = None, frame_phase_us: float | None = None,
+              lq_profile: str | None = None, hq_profile: str | None = None) -> Plan:
     """Check the options and decide everything but the pixels: rig, clocks, which frames exist."""
     effects = parse_effects(effects)
     _check_options(seconds=seconds, seed=seed, time_shift_us=time_shift_us, color_encoding=color_encoding)
     _check_frame_phase(frame_phase_us, lq_fps)
-    built = _apply_lens_effect(build_rig(rig, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps), effects)
+    built = _apply_lens_effect(build_rig(rig, scale=scale, lq_fps=lq_fps, hq_fps=hq_fps, lq_profile=lq_profile,
+                                         hq_profile=hq_profile), effects)
     build_scene(scene, seed=seed)  # validates the name early, before anything is written
     rng = np.random.default_rng([int(seed), 1])
     clocks = draw_clocks({s.id: s.fps for s in built.sensors}, reference=built.reference, target=built.target,

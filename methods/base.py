@@ -81,7 +81,7 @@ class MethodNeeds:
         if self.batch_size > 1:
             parts.append(f"batches of {self.batch_size}")
         if self.device != "cpu":
-            parts.append(f"device {self.device}")
+            parts.append("a GPU when present" if self.device == "auto" else f"device {self.device}")
         return ", ".join(parts)
 
 
@@ -240,13 +240,18 @@ class Denoiser:
         """True when the method cannot run without a weights file given as a parameter."""
         return cls.weights_param is not None and cls.defaults.get(cls.weights_param) is None
 
+    @classmethod
+    def declared_needs(cls) -> MethodNeeds:
+        """The needs the class declares (no instance: a method that needs weights can be described too)."""
+        return MethodNeeds(color=bool(cls.uses_color), camera=bool(cls.uses_camera),
+                           sequence=bool(cls.sequential), chunk_frames=cls.chunk_frames,
+                           warmup_frames=int(cls.warmup_frames), batch_size=int(cls.batch_size),
+                           device=cls.device)
+
     @property
     def needs(self) -> MethodNeeds:
         """What the runner must give this method (colour, camera, sequence scheduling, batch, device)."""
-        return MethodNeeds(color=bool(self.uses_color), camera=bool(self.uses_camera),
-                           sequence=bool(self.sequential), chunk_frames=self.chunk_frames,
-                           warmup_frames=int(self.warmup_frames), batch_size=int(self.batch_size),
-                           device=self.device)
+        return self.declared_needs()
 
     @property
     def key(self) -> str:

@@ -100,7 +100,8 @@ def _fmt(value) -> str:
 # ----------------------------------------------------------------------------- commands
 def _listing(name: str, cls) -> dict:
     """One method as ``methods list --json`` shows it."""
-    needs = "" if cls.needs_weights() else cls().needs.describe()
+    parts = [f"weights file ({cls.weights_param}=PATH)"] if cls.needs_weights() else []
+    needs = ", ".join(parts + [p for p in [cls.declared_needs().describe()] if p])
     return {"name": name, "aliases": aliases_of(name), "version": cls.version, "description": cls.description,
             "learned": cls.learned, "uses_color": cls.uses_color, "sequential": cls.sequential,
             "needs": needs or "depth only", "params": [{"name": k, "default": v, "help": cls.param_help.get(k, "")}

@@ -62,6 +62,10 @@ def test_list_shows_every_method_with_parameters(cli, main):
     rgf = {p["name"]: p["default"] for p in listed["rolling_guidance"]["params"]}
     assert rgf["iterations"] == get("rolling_guidance").params["iterations"]
     assert listed["joint_bilateral"]["uses_color"] is True
+    # methods that cannot be built without weights still say what they need
+    assert listed["ddrnet_refine"]["needs"] == "weights file (weights=PATH), colour, a GPU when present"
+    assert listed["ssdd_lstm"]["needs"].startswith("weights file (weights=PATH), sequence (")
+    assert listed["raw"]["needs"] == "depth only"
 
 
 def test_run_writes_depth_in_the_dataset_unit_and_json(cli, dataset, tmp_path):

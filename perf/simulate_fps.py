@@ -1,6 +1,7 @@
 """Simulator throughput: frames of scene time per second for each rig, and where the time goes.
 
 Run:  .venv/bin/python perf/simulate_fps.py [--seconds 3] [--scene people] [--workers N] [--repeat 3]
+      .venv/bin/python perf/simulate_fps.py --rigs lq-hq --against-scene people-boxy --repeat 3 --no-reference
 
 For each rig at the default resolutions (lq-hq: 640x480 stereo + 512x424 ToF + 960x540 colour),
 it simulates ``--seconds`` of scene time into a temporary folder and prints:
@@ -19,6 +20,10 @@ every pixel cast every frame (no still layer), encoding after rendering, printed
 ratios compare against it. The default for ``lq-hq`` (one process on 2 cores, encoding in a
 thread while the next frame renders) is also compared with 2 worker processes.
 The machine is shared while the suite is developed, so the load average is printed too.
+
+``--against-scene S``: for each rig, runs of ``--scene`` and of ``S`` alternate (``--repeat``
+pairs, so a load change on a shared machine hits both alike) and the ratio of the two is printed
+(issue 13: the smooth ``people`` figures against the earlier ``people-boxy`` ones).
 """
 from __future__ import annotations
 
@@ -47,9 +52,10 @@ def _run(out: Path, rig: str, args, *, workers: int | None, reference: bool = Fa
     return best
 
 
-def _run_once(out: Path, rig: str, args, *, workers: int | None, reference: bool = False) -> dict:
+def _run_once(out: Path, rig: str, args, *, workers: int | None, reference: bool = False,
+              scene: str | None = None) -> dict:
     cpu0 = _cpu_seconds()
-    r = simulate(out, rig=rig, scene=args.scene, seconds=args.seconds, seed=1, force=True, progress=False,
+    r = simulate(out, rig=rig, scene=scene or args.scene, seconds=args.seconds, seed=1, force=True, progress=False,
                  workers=workers, reference=reference)
     frames = args.seconds * 30.0
     return {"fps": r.scene_frames_per_s, "wall": r.elapsed_s,
@@ -66,6 +72,22 @@ def _print(label: str, m: dict, ref: dict | None, cores: int) -> None:
           f"-> {cpu_fps:5.1f} frames/s on {cores} idle cores | stage ms/frame: {stages}{ratio}")
 
 
+def _against(out: Path, rig: str, args, cores: int) -> None:
+    """``--scene`` against ``--against-scene`` on ``rig``, runs alternated; best of each, and the ratio."""
+    runs: dict[str, list[dict]] = {args.scene: [], args.against_scene: []}
+    for _ in range(args.repeat):
+        for scene in runs:
+            runs[scene].append(_run_once(out, rig, args, workers=args.workers, scene=scene))
+    best = {}
+    for scene, ms in runs.items():
+        best[scene] = max(ms, key=lambda m: m["fps"]) | {"cpu_per_frame_ms": min(m["cpu_per_frame_ms"] for m in ms)}
+        _print(f"{rig}, scene {scene}", best[scene], None, cores)
+        print("    cpu ms/frame of each run: " + ", ".join(f"{m['cpu_per_frame_ms']:.0f}" for m in ms))
+    a, b = best[args.scene], best[args.against_scene]
+    print(f"{rig}: {args.scene} / {args.against_scene}: x{a['fps'] / b['fps']:.3f} wall rate, "
+          f"x{b['cpu_per_frame_ms'] / a['cpu_per_frame_ms']:.3f} cpu rate (> 1: {args.scene} is faster)")
+
+
 def _reference(out: Path, args) -> dict:
     """lq-hq the straightforward way: every pixel cast every frame, encode after render, one process."""
     return _run(out, "lq-hq", args, workers=1, reference=True)
@@ -79,6 +101,8 @@ def main() -> None:
     p.add_argument("--rigs", nargs="*", default=list(RIGS))
     p.add_argument("--repeat", type=int, default=1, help="runs per configuration; the best wall rate is shown")
     p.add_argument("--no-reference", action="store_true", help="skip the slow reference run")
+    p.add_argument("--against-scene", default=None, metavar="S",
+                   help="compare --scene with scene S on each rig, runs alternated (e.g. people-boxy)")
     args = p.parse_args()
     cores = os.cpu_count() or 1
     print(f"cores: {cores}  load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}  "
@@ -90,6 +114,9 @@ def main() -> None:
             ref = _reference(tmp / "ref", args)
             _print("reference: lq-hq, naive", ref, None, cores)
         for rig in args.rigs:
+            if args.against_scene:
+                _against(tmp / rig, rig, args, cores)
+                continue
             m = _run(tmp / rig, rig, args, workers=args.workers)
             _print(f"{rig}, {'default' if args.workers is None else args.workers} workers", m, ref, cores)
             if rig == "lq-hq" and args.workers is None:

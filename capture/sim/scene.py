@@ -9,13 +9,13 @@ which is what lets the texture stay fixed to each surface.
 
 Scenes (``SCENES``):
 
-* ``people``: three figures (capsules and a sphere head, swinging arms and legs) walking
-  elliptical paths at about 1 m/s, turning continuously, plus three drifting balloons;
-* ``people-smooth``: the same walks and balloons with smooth, body-like figures: tapered body
-  segments with hemispherical ends, an ellipsoidal head, shaded with interpolated vertex normals
-  (no facets for a network to learn; the render test measures the shading normal's error).
-  Not yet the default: switching ``people`` to it moves the multiview alignment test's time
-  shift error from below 2 ms to 2.7 ms (see the notes of issue 13);
+* ``people``: three figures walking elliptical paths at about 1 m/s, turning continuously, plus
+  three drifting balloons; the figures are smooth and body-like: tapered body segments with
+  hemispherical ends and an ellipsoidal head, swinging arms and legs, shaded with interpolated
+  vertex normals (no facets for a network to learn; the render test measures the shading
+  normal's error);
+* ``people-boxy``: the same walks and balloons with the earlier figures (capsules, boxes and a
+  sphere head, flat-shaded facets), kept to compare against (``perf/simulate_fps.py``);
 * ``balloons``: eight textured balloons drifting and spinning;
 * ``planes``: fronto-parallel textured panels 1.0, 1.5, 2.0, 2.5 and 3.0 m in front of the
   origin (plus the back wall at 4.5 m), sliding sideways by a few centimetres.
@@ -42,7 +42,7 @@ from capture.sim.errors import SimulationError
 from capture.sim.geometry import _lathe, box, capsule, pose, quad, rot_x, rot_y, rot_z, sphere
 from capture.sim.texture import Material
 
-SCENES = ("people", "people-smooth", "balloons", "planes")
+SCENES = ("people", "people-boxy", "balloons", "planes")
 
 #: Back wall distance (y, metres) per scene; the planes scene documents its depths exactly.
 PLANE_DEPTHS_M = (1.0, 1.5, 2.0, 2.5, 3.0)
@@ -354,8 +354,8 @@ def build_scene(name: str, *, seed: int = 0, static: bool = False, eye_height: f
         actors = [_room(ids, back_y=PLANES_WALL_M), _panel_actor(ids, rng, eye_height=eye_height)]
         return Scene(name, actors, ids.materials, static)
     actors = [_room(ids, back_y=5.0), _props(ids, 5.0)]
-    if name in ("people", "people-smooth"):
-        smooth = name == "people-smooth"
+    if name in ("people", "people-boxy"):
+        smooth = name == "people"
         for k, cy in enumerate((2.0, 2.9, 3.7)):
             walk = Walk(float(rng.uniform(-0.4, 0.4)), cy, float(rng.uniform(0.7, 1.0)), 0.33,
                         float(rng.uniform(0.85, 1.2)), float(rng.uniform(0, 2 * np.pi)), int(rng.choice([-1, 1])))

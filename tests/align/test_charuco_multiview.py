@@ -118,12 +118,13 @@ def test_multiview_rig_in_one_frame(multiview):
     ref = truth["reference_sensor"]
     assert rig["reference"] == ref == "hq"
     assert set(rig["T_rig_sensor"]) == {"hq", "view0", "view1", "view2", "view3"}
+    errors = []
     for v, p in truth["pairs"].items():
         if v == ref:
             continue
         T_fit = Transform.from_list(rig["T_rig_sensor"][v]).inverse()  # T_view_ref
         dt, dr = T_fit.error_to(Transform.from_list(p["T_sensor_reference"]))
-        # half resolution and 1.5 s: looser than the 2 mm / 0.1 deg shown at full resolution
+        # half resolution and 2 s: looser than the 2 mm / 0.1 deg shown at full resolution
         # (bench/perf/align_accuracy.py)
         assert dt < 0.006 and dr < 0.1, (v, dt, dr)
         # the rig is consistent: view-to-view transforms composed through the rig frame
@@ -133,7 +134,15 @@ def test_multiview_rig_in_one_frame(multiview):
         assert T_v0.error_to(T_v0_true)[0] < 0.012
         meta = json.loads((out / v / "aligned.json").read_text())
         if meta["time_model"]["observable"]:  # wide baselines at half resolution: few moving matches
-            assert abs(rig["time_shift_us"][v] - p["time_shift_us"]) < 2000, v
+            errors.append(rig["time_shift_us"][v] - p["time_shift_us"])
+    # The shift comes from the few features on moving figures (40-150 per view here). Measured on
+    # seeds 5 and 6 x 4 views (issue 13, docs/worklog/2026-11-23/s13-sensor.md): the RMS error
+    # is 1.0 ms with the smooth figures and 1.0 ms with the earlier faceted ones; the smooth bodies
+    # give 29 % fewer moving features (no facet-shading corners to track), so the stated std grows
+    # from 0.48 to 0.57 ms, and the largest single view error was 2.6 ms (smooth, seed 5, view1)
+    # against 1.4 ms (faceted). So per view 3 ms (3 x the RMS error) and over the views 2 ms RMS.
+    assert errors and all(abs(e) < 3000 for e in errors), errors
+    assert np.sqrt(np.mean(np.square(errors))) < 2000, errors
     for v in ("view0", "view1", "view2", "view3"):
         assert (out / v / "aligned.json").is_file() and (out / v / "report.md").is_file()
     assert (out / "report.md").is_file()

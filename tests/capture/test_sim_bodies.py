@@ -64,13 +64,13 @@ def test_vertex_normals_and_tapered_limbs_are_closed_and_outward():
 
 
 def test_smooth_people_scene():
-    s = build_scene("people-smooth", seed=0)
+    s = build_scene("people", seed=0)
     assert s.has_smooth
     figure = [a for a in s.actors if a.name.startswith("figure")][0]
     assert all(p.smooth for p in figure.parts)
     room = [a for a in s.actors if a.name == "room"][0]
     assert not any(p.smooth for p in room.parts)
-    # same walks as 'people' (only the bodies differ): the figures' roots are at the same places
-    p = build_scene("people", seed=0)
+    # same walks as 'people-boxy' (only the bodies differ): the figures' roots are at the same places
+    p = build_scene("people-boxy", seed=0)
     assert not p.has_smooth
     assert np.allclose(s.part_poses(1.0)[0], p.part_poses(1.0)[0])

@@ -107,8 +107,11 @@ class DataConfig:
 
     ``crop``: square crop side in pixels (0: whole frames); ``flip``: random horizontal flips;
     ``sequence_length``: consecutive frames per sample (1: single frames); ``depth_min_m`` /
-    ``depth_max_m``: the clipped range of the depth normalisation; ``preload``: decode every
-    frame once into memory (small corpora).
+    ``depth_max_m``: the clipped range of the depth normalisation; ``depth_scale_m``: 0 for that
+    range coding, > 0 for the centred coding (the frame's median depth subtracted, then divided by
+    ``depth_scale_m``; :func:`methods.nn.normalize.encode_depth`); ``preload``: decode every
+    frame once into memory (small corpora); ``roi_crop``: probability that a training crop is
+    centred on a random pixel of the region of interest (0: uniform crops).
     """
 
     crop: int = 64
@@ -116,10 +119,14 @@ class DataConfig:
     sequence_length: int = 1
     depth_min_m: float = 0.2
     depth_max_m: float = 6.0
+    depth_scale_m: float = 0.0
     preload: bool = True
     num_workers: int = 0
+    roi_crop: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.roi_crop <= 1.0:
+            raise ValueError(f"data.roi_crop must be in [0, 1], got {self.roi_crop}")
         if self.crop < 0 or (self.crop and self.crop % 8):
             raise ValueError(f"data.crop must be 0 (whole frames) or a positive multiple of 8, got {self.crop}")
         if self.sequence_length < 1:
@@ -127,6 +134,8 @@ class DataConfig:
         if not 0 <= self.depth_min_m < self.depth_max_m:
             raise ValueError(f"data.depth_min_m must be >= 0 and below data.depth_max_m, got "
                              f"{self.depth_min_m}, {self.depth_max_m}")
+        if self.depth_scale_m < 0:
+            raise ValueError(f"data.depth_scale_m must be >= 0 (0: range coding), got {self.depth_scale_m}")
         if self.num_workers < 0:
             raise ValueError(f"data.num_workers must be >= 0, got {self.num_workers}")
 

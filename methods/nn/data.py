@@ -91,6 +91,19 @@ def crop_box(shape: tuple[int, int], crop: int, rng: np.random.Generator) -> tup
     return y0, x0, crop, crop
 
 
+def roi_crop_box(roi: np.ndarray, crop: int, rng: np.random.Generator) -> tuple[int, int, int, int] | None:
+    """A ``crop``-pixel square centred (as far as the frame allows) on a random pixel of ``roi``
+    ``(H, W)`` bool: ``(y0, x0, h, w)``; None when ``roi`` is empty or ``crop`` is 0."""
+    ys, xs = np.nonzero(roi)
+    if crop <= 0 or ys.size == 0:
+        return None
+    j = int(rng.integers(0, ys.size))
+    h, w = roi.shape
+    y0 = min(max(int(ys[j]) - crop // 2, 0), h - crop)
+    x0 = min(max(int(xs[j]) - crop // 2, 0), w - crop)
+    return y0, x0, crop, crop
+
+
 def crop_camera(K, *, y0: int, x0: int, w: int, flip: bool) -> torch.Tensor:
     """Intrinsics ``(fx, fy, cx, cy)`` of a crop at ``(y0, x0)`` of width ``w``, mirrored when ``flip``."""
     cx, cy = K.cx - x0, K.cy - y0
@@ -111,16 +124,20 @@ class AlignedSamples(Dataset):
         preload: keep decoded frames in memory.
         extra: extra per-frame depth layers, ``{layer name: {dataset checksum: (F, H, W) float32 metres}}``.
         stride: distance between the first frames of consecutive samples of a dataset.
+        roi_crop: probability that a crop is centred on a random ROI pixel of the sample's first
+            frame instead of drawn uniformly (0: always uniform). Where the ROI covers a small part
+            of the frame (people at a distance), uniform crops carry few loss pixels of eq. 32.
     """
 
     def __init__(self, datasets: list[AlignedDataset], *, sequence_length: int = 1, crop: int = 0, flip: bool = False,
                  seed: int = 0, preload: bool = False, extra: dict[str, dict[str, np.ndarray]] | None = None,
-                 stride: int = 1) -> None:
+                 stride: int = 1, roi_crop: float = 0.0) -> None:
         if not datasets:
             raise TrainingError("no dataset to draw training samples from")
         self.caches = [_FrameCache(ds, keep=preload) for ds in datasets]
         self.sequence_length, self.crop, self.flip, self.seed = int(sequence_length), int(crop), bool(flip), int(seed)
         self.extra = extra or {}
+        self.roi_crop = float(roi_crop)
         self.epoch = 0
         shapes = {c.shape for c in self.caches}
         for c in self.caches:
@@ -149,9 +166,12 @@ class AlignedSamples(Dataset):
         win = self.windows[k]
         cache = self.caches[win.dataset]
         rng = sample_rng(self.seed, self.epoch, k)
-        y0, x0, h, w = crop_box(cache.shape, self.crop, rng)
-        flip = self.flip and bool(rng.integers(0, 2))
         frames = [cache.frame(i) for i in range(win.start, win.start + win.length)]
+        box = None
+        if self.roi_crop > 0 and rng.random() < self.roi_crop:
+            box = roi_crop_box(frames[0]["roi"], self.crop, rng)
+        y0, x0, h, w = box or crop_box(cache.shape, self.crop, rng)
+        flip = self.flip and bool(rng.integers(0, 2))
 
         def take(a: np.ndarray) -> np.ndarray:
             a = a[y0:y0 + h, x0:x0 + w]

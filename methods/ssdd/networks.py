@@ -21,7 +21,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from methods.nn.convlstm import ConvLSTMCell
-from methods.nn.layers import ConvBlock, Down, Up, level_widths
+from methods.nn.layers import NORMS, ConvBlock, Down, Up, level_widths
 
 
 @dataclass
@@ -30,7 +30,11 @@ class NetConfig:
 
     ``width``: channels of the first level (doubling per level); ``levels``: resolutions (the
     bottleneck is ``levels - 1``); ``use_mask``: feed the LQ validity mask; ``use_color``: feed
-    the LQ colour; ``recurrent``: levels with a ConvLSTM cell (level 2 only; -1 = bottleneck).
+    the LQ colour; ``recurrent``: levels with a ConvLSTM cell (level 2 only; -1 = bottleneck);
+    ``stem``: space-to-depth factor of the input (1: the first block at full resolution; 2 or 4:
+    cheaper, but the per-pixel correction is then made at a coarser grid and learns more slowly);
+    ``norm``: ``"none"`` (default) or ``"group"`` (GroupNorm: per-sample normalised features lose
+    the input's scale, and the residual correction with it; the nets stayed at the identity).
     """
 
     width: int = 16
@@ -38,9 +42,12 @@ class NetConfig:
     use_mask: bool = True
     use_color: bool = False
     recurrent: list[int] = field(default_factory=list)
-    stem: int = 2
+    stem: int = 1
+    norm: str = "none"
 
     def __post_init__(self) -> None:
+        if self.norm not in NORMS:
+            raise ValueError(f"model.norm must be one of {', '.join(NORMS)}, got {self.norm!r}")
         if self.stem not in (1, 2, 4):
             raise ValueError(f"model.stem must be 1, 2 or 4, got {self.stem}")
         if self.width < 2 or self.levels < 1 or self.levels > 7:
@@ -63,15 +70,16 @@ class UNet(nn.Module):
     A cell's output is added to the level's features (the feed-forward path stays intact).
     """
 
-    def __init__(self, c_in: int, *, width: int, levels: int, recurrent: list[int] = (), stem: int = 1) -> None:
+    def __init__(self, c_in: int, *, width: int, levels: int, recurrent: list[int] = (), stem: int = 1,
+                 norm: str = "group") -> None:
         super().__init__()
         widths = level_widths(width, levels)
         self.recurrent = list(recurrent)
         self.stem = stem
-        self.inc = ConvBlock(c_in * stem * stem, widths[0])
-        self.downs = nn.ModuleList(Down(widths[i - 1], widths[i]) for i in range(1, levels))
+        self.inc = ConvBlock(c_in * stem * stem, widths[0], norm=norm)
+        self.downs = nn.ModuleList(Down(widths[i - 1], widths[i], norm=norm) for i in range(1, levels))
         self.cells = nn.ModuleDict({str(lv): ConvLSTMCell(widths[lv], widths[lv]) for lv in self.recurrent})
-        self.ups = nn.ModuleList(Up(widths[i], widths[i - 1], widths[i - 1]) for i in range(levels - 1, 0, -1))
+        self.ups = nn.ModuleList(Up(widths[i], widths[i - 1], widths[i - 1], norm=norm) for i in range(levels - 1, 0, -1))
         self.head = nn.Conv2d(widths[0], stem * stem, 1)
         with torch.no_grad():   # start near the identity (small residual), but let gradients flow everywhere
             self.head.weight.mul_(0.01)
@@ -113,7 +121,8 @@ class SSDDUNet(nn.Module):
     def __init__(self, cfg: NetConfig) -> None:
         super().__init__()
         self.cfg = cfg
-        self.unet = UNet(1 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels, stem=cfg.stem)
+        self.unet = UNet(1 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels, stem=cfg.stem,
+                         norm=cfg.norm)
 
     def forward(self, x_lq: torch.Tensor, valid: torch.Tensor | None = None, rgb: torch.Tensor | None = None) -> torch.Tensor:
         x = _inputs(x_lq, [valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])
@@ -133,7 +142,7 @@ class SSDDLSTMUNet(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.unet = UNet(2 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels,
-                         recurrent=cfg.recurrent_levels(), stem=cfg.stem)
+                         recurrent=cfg.recurrent_levels(), stem=cfg.stem, norm=cfg.norm)
 
     def step(self, x_l1, x_lq, valid=None, rgb=None, state: dict | None = None) -> tuple[torch.Tensor, dict]:
         x = _inputs(x_l1, [x_lq, valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])

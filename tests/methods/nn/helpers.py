@@ -13,11 +13,12 @@ from align.dataset import AlignedDataset
 K_TINY = Intrinsics(48, 40, 45.0, 45.0, 23.5, 19.5)
 
 
-def coded_dataset(root: Path, *, name: str, frames: int = 5, K: Intrinsics = K_TINY) -> Path:
+def coded_dataset(root: Path, *, name: str, frames: int = 5, K: Intrinsics = K_TINY, roi=None) -> Path:
     """Every layer encodes (x, y, frame) so a test can check that crops/flips keep layers registered.
 
     colour: R = x, G = y, B = frame; LQ depth = 1 + x mm + 10 y mm + 100 frame mm (metres, exact at
-    0.1 mm); reference = LQ depth + 0.5 m, NaN where (x + y + frame) % 7 == 0; ROI = x even.
+    0.1 mm); reference = LQ depth + 0.5 m, NaN where (x + y + frame) % 7 == 0; ROI = x even, or
+    ``roi(x, y, frame)`` (bool arrays) when given.
     """
     v, u = np.mgrid[0:K.height, 0:K.width]
     meta = {"name": name, "lq_intrinsics": K.to_dict(), "time_shift_us": 0, "T_lq_hq": np.eye(4).tolist()}
@@ -27,7 +28,7 @@ def coded_dataset(root: Path, *, name: str, frames: int = 5, K: Intrinsics = K_T
             ref = (depth + 0.5).astype(np.float32)
             ref[(u + v + i) % 7 == 0] = np.nan
             col = np.stack([u, v, np.full_like(u, i)], axis=-1).astype(np.uint8)
-            w.add_frame(depth, ref, lq_color=col, roi=(u % 2 == 0), lq_frame=i, hq_frame=i, lq_timestamp_us=i * 33_333)
+            w.add_frame(depth, ref, lq_color=col, roi=(u % 2 == 0) if roi is None else roi(u, v, i), lq_frame=i, hq_frame=i, lq_timestamp_us=i * 33_333)
     return root
 
 

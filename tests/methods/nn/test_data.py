@@ -79,3 +79,25 @@ def test_crop_larger_than_frames_and_too_long_sequences_are_errors(coded):
         AlignedSamples(coded, crop=64)
     with pytest.raises(TrainingError, match="6 frames"):
         AlignedSamples(coded, sequence_length=6)
+
+
+def test_roi_crops_hold_the_roi_and_stay_registered(tmp_path):
+    # a 3x3 ROI that moves one pixel per frame, in a corner of the 48x40 frame: uniform 16-pixel
+    # crops miss it most of the time, ROI-centred crops (roi_crop = 1) always hold it
+    def roi(x, y, i):
+        return (abs(x - 40 - i) <= 1) & (abs(y - 6) <= 1)
+    ds = [AlignedDataset(coded_dataset(tmp_path / "r", name="r", frames=4, roi=roi))]
+    centred = AlignedSamples(ds, sequence_length=2, crop=16, flip=True, seed=2, roi_crop=1.0)
+    uniform = AlignedSamples(ds, sequence_length=2, crop=16, flip=True, seed=2)
+    hits = {"centred": 0, "uniform": 0}
+    for epoch in range(6):
+        for name, samples in (("centred", centred), ("uniform", uniform)):
+            samples.set_epoch(epoch)
+            for k in range(len(samples)):
+                s = samples[k]
+                hits[name] += bool(s["roi"][0].sum() > 0)
+                x, y, f = _decode(s, 1)                   # registration holds for the second frame too
+                np.testing.assert_allclose(s["lq_depth"][1, 0].numpy(), 1.0 + 0.001 * x + 0.01 * y + 0.1 * f, atol=6e-5)
+                np.testing.assert_array_equal(s["roi"][1, 0].numpy(), roi(x, y, f).astype(np.float32))
+    n = 6 * len(centred)
+    assert hits["centred"] == n and hits["uniform"] < n / 2, hits

@@ -40,6 +40,9 @@ class DDRNetConfig:
             raise ValueError(f"methods must name some of {', '.join(METHODS)}, got {self.methods}")
         if self.data.sequence_length != 1:
             raise ValueError("data.sequence_length must be 1 (DDRNet sees single frames)")
+        if self.data.depth_scale_m:
+            raise ValueError("data.depth_scale_m must be 0: DDRNet codes depth by its range "
+                             "(data.depth_min_m, data.depth_max_m) as the paper does")
 
 
 def _samples(datasets, cfg: DDRNetConfig, *, train: bool):
@@ -47,7 +50,7 @@ def _samples(datasets, cfg: DDRNetConfig, *, train: bool):
         return None
     d = cfg.data
     return AlignedSamples(datasets, crop=d.crop if train else 0, flip=d.flip and train, seed=cfg.optim.seed,
-                          preload=d.preload)
+                          preload=d.preload, roi_crop=d.roi_crop if train else 0.0)
 
 
 def train_ddrnet(ctx: RunContext) -> dict[str, Path]:

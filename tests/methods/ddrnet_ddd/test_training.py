@@ -61,3 +61,20 @@ def test_ddrnet_trained_beats_raw_on_held_out_data_and_is_reproducible(tmp_path)
     for name in ("ddrnet", "ddrnet_refine"):
         ta, tb = load_tensors(a.weights[name]).tensors, load_tensors(b.weights[name]).tensors
         assert ta.keys() == tb.keys() and all(bool((ta[k] == tb[k]).all()) for k in ta), name
+
+
+def test_ddrnet_config_draws_roi_crops_for_training_only_and_refuses_the_centred_coding(tmp_path):
+    import pytest
+
+    from methods.ddrnet.train import DDRNetConfig, _samples
+    from methods.errors import ConfigError
+    from methods.nn.config import from_dict, load_config
+
+    tiny, _ = load_config("tiny", DDRNetConfig, family="ddrnet")
+    ds = [AlignedDataset(scene_dataset(tmp_path / "a", name="a", frames=2))]
+    assert tiny.data.roi_crop > 0
+    tiny.data.crop = 32  # the synthetic frames are 48x40
+    assert _samples(ds, tiny, train=True).roi_crop == tiny.data.roi_crop
+    assert _samples(ds, tiny, train=False).roi_crop == 0.0 and _samples(ds, tiny, train=False).crop == 0
+    with pytest.raises(ConfigError, match="depth_scale_m must be 0"):
+        from_dict(DDRNetConfig, {"data": {"depth_scale_m": 0.1}}, where="cfg.toml")

@@ -111,7 +111,9 @@ class DataConfig:
     range coding, > 0 for the centred coding (the frame's median depth subtracted, then divided by
     ``depth_scale_m``; :func:`methods.nn.normalize.encode_depth`); ``preload``: decode every
     frame once into memory (small corpora); ``roi_crop``: probability that a training crop is
-    centred on a random pixel of the region of interest (0: uniform crops).
+    centred on a random pixel of the region of interest (0: uniform crops); ``validation_stride``:
+    frames between the first frames of two validation samples (1: every frame; never below
+    ``sequence_length``), to make the per-epoch validation cheaper.
     """
 
     crop: int = 64
@@ -123,8 +125,11 @@ class DataConfig:
     preload: bool = True
     num_workers: int = 0
     roi_crop: float = 0.0
+    validation_stride: int = 1
 
     def __post_init__(self) -> None:
+        if self.validation_stride < 1:
+            raise ValueError(f"data.validation_stride must be at least 1, got {self.validation_stride}")
         if not 0.0 <= self.roi_crop <= 1.0:
             raise ValueError(f"data.roi_crop must be in [0, 1], got {self.roi_crop}")
         if self.crop < 0 or (self.crop and self.crop % 8):

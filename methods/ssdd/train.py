@@ -55,7 +55,8 @@ def _samples(datasets, data, *, seed: int, train: bool, extra=None) -> AlignedSa
         return None
     return AlignedSamples(datasets, sequence_length=data.sequence_length, crop=data.crop if train else 0,
                           flip=data.flip and train, seed=seed, preload=data.preload, extra=extra,
-                          stride=1 if train else data.sequence_length, roi_crop=data.roi_crop if train else 0.0)
+                          stride=1 if train else max(data.sequence_length, data.validation_stride),
+                          roi_crop=data.roi_crop if train else 0.0)
 
 
 def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset], validation: list[AlignedDataset],

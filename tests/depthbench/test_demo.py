@@ -51,3 +51,12 @@ def test_demo_refuses_an_existing_folder_and_bad_seconds(tmp_path, capsys):
 
     assert_one_line_error(CliResult(rc, "", err), "--seconds must be positive")
     assert not (tmp_path / "y").exists()
+
+
+def test_demo_refuses_a_bad_scale(tmp_path, capsys):
+    from depthbench.cli import main
+    from tests.conftest import CliResult
+
+    rc = main(["demo", "--out", str(tmp_path / "z"), "--scale", "1.5"])
+    assert_one_line_error(CliResult(rc, "", capsys.readouterr().err), "--scale must be in (0, 1]")
+    assert not (tmp_path / "z").exists()

@@ -30,8 +30,8 @@ def store(buf, idx, val, prio, tmp, tmp_i):
 @njit
 def edge_value(a, b, frac, jac, lims, grads, wk):
     """An edge point's splat at offset (a, b): its inverse depth, or -1 when the target lies
-    beyond the point's reach (one grid step towards a continuous neighbour, half towards a
-    discontinuous one, where the depth is held along that axis)."""
+    beyond the point's reach (one grid step towards a continuous neighbour, the edge reach towards
+    a discontinuous one, where the depth is held along that axis)."""
     jxu, jxv, jyu, jyv = jac
     lxp, lxm, lyp, lym = lims
     cu_ = f32(f32(a) - frac[0])
@@ -51,9 +51,10 @@ def edge_value(a, b, frac, jac, lims, grads, wk):
 
 
 @njit
-def edge_setup(links, sums, idet):
+def edge_setup(links, sums, idet, reach):
     """Per edge point: the source-grid Jacobian (undoing the sums' factors), the reach limits
-    along each axis, and the per-axis w gradient."""
+    along each axis (one step towards a continuous neighbour, ``reach`` of a step towards a
+    discontinuous one), and the per-axis w gradient."""
     cl, cr, cu, cd = links
     ux, vx, wx, uy, vy, wy = sums
     nx = f32(cl + cr)
@@ -61,16 +62,16 @@ def edge_setup(links, sums, idet):
     e_idet = f32(idet * f32(nx * ny))
     jac = (f32(f32(vy * e_idet) / ny), f32(f32(-uy * e_idet) / ny),
            f32(f32(-vx * e_idet) / nx), f32(f32(ux * e_idet) / nx))
-    lims = (f32(0.5) + f32(0.5) * cr, f32(-0.5) - f32(0.5) * cl,
-            f32(0.5) + f32(0.5) * cd, f32(-0.5) - f32(0.5) * cu)
+    hold = f32(1) - reach
+    lims = (reach + hold * cr, -reach - hold * cl, reach + hold * cd, -reach - hold * cu)
     return jac, lims, (f32(wx / nx), f32(wy / ny))
 
 
 @njit
-def splat_edge(buf, base, frac, links, sums, idet, wk, offs, Wp, tmp, tmp_i):
+def splat_edge(buf, base, frac, links, sums, idet, wk, offs, Wp, tmp, tmp_i, reach):
     """An edge point's splats: within reach of the point (see :func:`edge_value`)."""
     A, B, P = offs
-    jac, lims, grads = edge_setup(links, sums, idet)
+    jac, lims, grads = edge_setup(links, sums, idet, reach)
     for t in range(A.size):
         val = edge_value(A[t], B[t], frac, jac, lims, grads, wk)
         if val >= f32(0):
@@ -82,7 +83,7 @@ def kernel(buf, u, v, w, cxp, cyp, valid, geom, offs):
     """Steps 3-5 for every point (see :mod:`align.warp_numba`). The fast path (interior points,
     the whole block on the local plane) stays in the loop: moved into a helper function it runs
     4x slower (measured), where the rarer edge path costs nothing as a call."""
-    W, Wd, Hd, m, reach_scale, Wp, r = geom
+    W, Wd, Hd, m, reach_scale, Wp, r, edge_reach = geom
     A, B, P = offs
     N = u.size
     tmp = np.empty(1, np.float32)
@@ -113,7 +114,7 @@ def kernel(buf, u, v, w, cxp, cyp, valid, geom, offs):
         base = np.int64(fv + r) * Wp + np.int64(fu + r)
         idet = f32(f32(1) / det)
         if not fast:
-            splat_edge(buf, base, (fru, frv), links, (ux, vx, wx, uy, vy, wy), idet, w[k], offs, Wp, tmp, tmp_i)
+            splat_edge(buf, base, (fru, frv), links, (ux, vx, wx, uy, vy, wy), idet, w[k], offs, Wp, tmp, tmp_i, edge_reach)
             continue
         sgu = f32(gu * idet)
         sgv = f32(gv * idet)

@@ -47,6 +47,10 @@ def register(subparsers) -> None:
                         "leaves it unobservable: add --allow-unobservable)")
     g.add_argument("--residual-k", type=float, default=6.0, metavar="K",
                    help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
+    g.add_argument("--reference-edges", choices=("strict", "midpoint"), default="strict",
+                   help="the reference at depth edges: strict extends no surface past its last HQ sample and masks the "
+                        "far side of every reference edge (2 px, counted in aligned.json); midpoint guesses the edge half "
+                        "way and masks nothing (default: %(default)s)")
     g = p.add_argument_group("effects (the alignment loop, align/loop)")
     g.add_argument("--no-loop", action="store_true",
                    help="skip the effect loop (drift, rolling shutter, lens, depth scale/offset, duplicated frames)")
@@ -79,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
             time_model=args.time_model, workers=args.workers,
             on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
             report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
-            loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth)
+            loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth, reference_edges=args.reference_edges)
     except AlignError as exc:
         raise _with_flag(exc)
     sh = r.shift

@@ -42,6 +42,7 @@ from align.errors import AlignError, AssociationError, FeatureError, OptionError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
 from align.features import FEATURES, detect, lift, match, track
 from align.residuals import depth_residual, outliers, robust_summary
+from align.reference_edges import EdgeRule
 from align.roi import background_depth, foreground_mask
 from align.timestamps import regularize
 from align.time_shift import (DEFAULT_RANGE_US, Probe, ShiftEstimate, ShiftLoss, estimate_time_shift,
@@ -92,6 +93,7 @@ class AlignOptions:
     board_frames: int = 30
     loop: bool = True
     loop_correct_depth: bool = True
+    reference_edges: str = "strict"
 
     def check(self) -> None:
         if self.board is not None:
@@ -114,6 +116,7 @@ class AlignOptions:
             raise OptionError(f"largest pair time difference must be positive, got {self.max_dt_ms:g} ms", option="max_dt_ms")
         if self.time_model not in ("constant", "linear"):
             raise OptionError(f"time model must be constant or linear, got {self.time_model!r}", option="time_model")
+        EdgeRule.named(self.reference_edges)
         if self.on_unobservable not in ("error", "flag"):
             raise OptionError(f"on_unobservable must be 'error' or 'flag', got {self.on_unobservable!r}",
                               option="on_unobservable")
@@ -502,7 +505,8 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
                        truth: TruthSource | None, meta_extra: dict | None = None) -> PairOutput:
     """Warp, mask, filter and write one pair's aligned dataset (plus report) to ``root``."""
     sess = setup.session
-    warper = DepthWarper(setup.K_hq, setup.K_lq, pf.T_lq_hq, edge_rel=opts.edge_rel)
+    rule = EdgeRule.named(opts.reference_edges, edge_rel=opts.edge_rel)
+    warper = DepthWarper(setup.K_hq, setup.K_lq, pf.T_lq_hq, edge_rel=opts.edge_rel, edge_reach=rule.edge_reach)
     table = pair_frames(setup, pf, opts)
     lq_color_T = setup.T_lqdepth_lqcolor.inverse()
     color_registered = setup.T_lqdepth_lqcolor.is_close(Transform.identity(), 1e-9) and setup.K_lq_color == setup.K_lq
@@ -514,7 +518,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     for k in tqdm(timed, desc=f"residuals {setup.name}", unit="pair", disable=not opts.progress, file=sys.stderr,
                   leave=False):
         i, j = int(table.hq_index[k]), int(table.lq_index[k])
-        ref = warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
+        ref, _ = rule.apply(warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth)))
         lq = _lq_depth(sess, setup, pf, j)
         table.residual[k], n = depth_residual(lq, ref)
         if n < 100:
@@ -533,21 +537,25 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     meta = _metadata(setup, pf, table, opts, meta_extra)
     writer = AlignedDatasetWriter(root, meta, force=force, depth_unit_m=1e-4)
     example: dict = {}
+    masked = np.zeros(2, np.int64)  # ROI pixels masked by the edge rule, ROI pixels
     try:
         mid = kept[kept.size // 2]
         for k in tqdm(kept, desc=f"write {setup.name}", unit="frame", disable=not opts.progress, file=sys.stderr,
                       leave=False):
             i, j = int(table.hq_index[k]), int(table.lq_index[k])
             fl = int(setup.f_lq[j])
-            ref = warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
+            ref, edge_mask = rule.apply(warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth)))
             lq = _lq_depth(sess, setup, pf, j)
             color = _lq_color(sess, setup, fl, lq, color_registered, lq_color_T)
             roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), background) if background is not None else None
+            if roi is not None:
+                masked += (int((edge_mask & roi).sum()), int(roi.sum()))
             tr = truth.depth(fl) if truth is not None else None
             writer.add_frame(lq, ref, lq_color=color, roi=roi, truth=tr, lq_frame=fl, hq_frame=int(setup.f_hq[i]),
                              lq_timestamp_us=int(setup.t_lq[j]))
             if k == mid:
                 example = {"lq": lq, "ref": ref, "color": color, "roi": roi, "lq_frame": fl, "hq_frame": int(setup.f_hq[i])}
+        meta["reference_edges"] = {**rule.to_dict(), "masked_roi_pixels": int(masked[0]), "roi_pixels": int(masked[1])}
         writer.write_table("pairs.csv", table.to_csv(setup, shift_all))
         report = None
         if opts.report:

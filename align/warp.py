@@ -22,8 +22,10 @@ For every source pixel ``p`` with depth ``d``:
    destination pixels around it (``k = 2`` when the destination is up to ~1.7x finer, larger when
    finer still) within one source-grid step of it, so the splats of neighbouring points overlap and
    a continuous surface leaves no holes. Towards a discontinuous neighbour a point reaches only
-   half way (the edge is assumed at the midpoint) and holds its depth along that axis: nothing is
-   extrapolated past the last sample of a surface, and no value is ever a mix of two surfaces.
+   ``edge_reach`` of a step (0.5, the default: the edge is assumed at the midpoint) and holds its
+   depth along that axis: nothing is extrapolated past the last sample of a surface, and no value
+   is ever a mix of two surfaces. ``edge_reach=0`` claims only what the samples cover: the
+   reference of the aligned dataset uses it (see :mod:`align.reference_edges` for why).
 5. Z-buffer (``np.maximum.at`` on an int64 key): the nearest surface wins (to ~2 % of depth);
    among splats of that surface a fixed priority of the splat offset decides, so the choice does
    not depend on the noisy values (taking the nearest of several noisy values of one surface
@@ -64,6 +66,8 @@ class DepthWarper:
         T_dst_src: maps source camera points into the destination camera frame, metres.
         edge_rel: relative depth jump that separates two surfaces (0.03 = 3 %).
         footprint: splat block size ``k``; ``None`` chooses it from the focal-length ratio.
+        edge_reach: how far a surface reaches past its last sample towards another surface, in
+            source-grid steps, ``[0, 1)`` (step 4 above).
 
     Example:
         >>> K = Intrinsics(8, 6, 10.0, 10.0, 3.5, 2.5)
@@ -74,9 +78,12 @@ class DepthWarper:
 
     def __init__(self, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, *,
                  edge_rel: float = DEFAULT_EDGE_REL, footprint: int | None = None, min_depth_m: float = 0.2,
-                 engine: str = "auto") -> None:
+                 engine: str = "auto", edge_reach: float = 0.5) -> None:
         if engine not in ("auto", "numba", "numpy"):
             raise OptionError(f"warp engine must be auto, numba or numpy, got {engine!r}")
+        if not 0.0 <= edge_reach < 1.0:
+            raise OptionError(f"edge reach must be in [0, 1) source-grid steps, got {edge_reach!r}",
+                              option="edge_reach")
         self.engine = ("numba" if have_numba() else "numpy") if engine == "auto" else engine
         self.K_src, self.K_dst, self.T = K_src, K_dst, T_dst_src
         self.edge_rel = float(edge_rel)
@@ -90,7 +97,7 @@ class DepthWarper:
         self._a = [np.ascontiguousarray(a[:, i].reshape(H, W)[r0:r1, c0:c1], dtype=np.float32) for i in range(3)]
         self._t = [np.float32(x) for x in T_dst_src.t]
         self.grid = SplatGrid(k=self.k, r=self.r, width=K_dst.width, height=K_dst.height,
-                              offsets=tuple(splat_offsets(self.k)))
+                              offsets=tuple(splat_offsets(self.k)), edge_reach=float(edge_reach))
         self._dist = K_dst.dist_coeffs.astype(np.float32) if K_dst.has_distortion else None
 
     def _source_crop(self, a: np.ndarray, min_depth_m: float) -> tuple[int, int, int, int]:
@@ -313,9 +320,9 @@ def _distort(x: np.ndarray, y: np.ndarray, k: np.ndarray):
 
 
 def warp_depth(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, *,
-               edge_rel: float = DEFAULT_EDGE_REL) -> np.ndarray:
+               edge_rel: float = DEFAULT_EDGE_REL, edge_reach: float = 0.5) -> np.ndarray:
     """One-off :class:`DepthWarper` call; for many frames build the warper once."""
-    return DepthWarper(K_src, K_dst, T_dst_src, edge_rel=edge_rel)(depth_src)
+    return DepthWarper(K_src, K_dst, T_dst_src, edge_rel=edge_rel, edge_reach=edge_reach)(depth_src)
 
 
 def register_color(color: np.ndarray, depth: np.ndarray, K_depth: Intrinsics, K_color: Intrinsics,

@@ -33,7 +33,7 @@ def splat_numba(pts: SourcePoints, grid: SplatGrid, buf: np.ndarray) -> np.ndarr
     offs = (np.array([o[0] for o in grid.offsets], np.int64), np.array([o[1] for o in grid.offsets], np.int64),
             np.array([prio[o] for o in grid.offsets], np.int64))
     geom = (np.int64(pts.W), np.float32(grid.width), np.float32(grid.height), np.float32(grid.margin),
-            np.float32(2 * (grid.k // 2)), np.int64(grid.padded_width), np.int64(grid.r))
+            np.float32(2 * (grid.k // 2)), np.int64(grid.padded_width), np.int64(grid.r), np.float32(grid.edge_reach))
     _kernels()(buf, pts.u, pts.v, pts.w, pts.cxp, pts.cyp, pts.valid, geom, offs)
     return grid.depth_from_keys(buf)
 

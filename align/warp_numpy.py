@@ -12,9 +12,10 @@ engine (:mod:`align.warp_numba`). Every step works on flat arrays over prealloca
   destination pixel (destination not coarser than the source there; ``J^-1 = 2 S^-1`` for the
   sums ``S``) cover their ``k x k`` block unconditionally -- almost every point.
 * Edge path: the rest (edge points, and interior points of strongly compressed surfaces), few: a
-  pixel is covered when it lies within one grid step towards a continuous neighbour, or half way
-  (the edge assumed at the midpoint) towards a discontinuous one -- there with the point's own
-  depth, so nothing is extrapolated past the last sample of a surface.
+  pixel is covered when it lies within one grid step towards a continuous neighbour, or within the
+  edge reach (``grid.edge_reach`` of a step; 0.5: the edge assumed at the midpoint) towards a
+  discontinuous one -- there with the point's own depth, so nothing is extrapolated past the
+  last sample of a surface.
 """
 from __future__ import annotations
 
@@ -198,8 +199,10 @@ def _splat_edges(pts: SourcePoints, grid: SplatGrid, pl: _Plane) -> None:
     eidet = idet * (enx * eny)  # undo the sums' factors: J = S / n
     ejxu, ejxv = pl.vy[e] * eidet / eny, -pl.uy[e] * eidet / eny
     ejyu, ejyv = -pl.vx[e] * eidet / enx, pl.ux[e] * eidet / enx
-    lxp, lxm = 0.5 + 0.5 * cr[e], -0.5 - 0.5 * cl[e]
-    lyp, lym = 0.5 + 0.5 * cd[e], -0.5 - 0.5 * cu[e]
+    h = f32(grid.edge_reach)
+    hold = f32(1) - h
+    lxp, lxm = h + hold * cr[e], -h - hold * cl[e]
+    lyp, lym = h + hold * cd[e], -h - hold * cu[e]
     A = np.array([a_ for a_, _ in grid.offsets], f32)[:, None]
     B = np.array([b_ for _, b_ in grid.offsets], f32)[:, None]
     cu_, cv_ = A - efru, B - efrv  # target minus point, destination pixels (k*k, n)

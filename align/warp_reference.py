@@ -95,7 +95,7 @@ def _project_all(d, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, 
     return _Grid(d, u, v, w, edge_rel)
 
 
-def _splat(g: _Grid, i: int, j: int, offsets, prio, zbuf, zkeys) -> None:
+def _splat(g: _Grid, i: int, j: int, offsets, prio, zbuf, zkeys, edge_reach: float) -> None:
     """Splat point (i, j) onto the z-buffer (``zkeys``: (row, col) -> key)."""
     grads, conts = g.gradients(i, j)
     (nx, gx), (ny, gy) = grads
@@ -105,7 +105,7 @@ def _splat(g: _Grid, i: int, j: int, offsets, prio, zbuf, zkeys) -> None:
     if abs(np.linalg.det(J)) <= 1e-6 / (nx * ny):
         return
     Jinv = np.linalg.inv(J)
-    lim = {(ax, s): 1.0 if conts[ax][(s + 1) // 2] else 0.5 for ax in (0, 1) for s in (-1, 1)}
+    lim = {(ax, s): 1.0 if conts[ax][(s + 1) // 2] else edge_reach for ax in (0, 1) for s in (-1, 1)}
     fu, fv = math.floor(g.u[i, j]), math.floor(g.v[i, j])
     Hd, Wd = zbuf.shape
     for a, b in offsets:
@@ -126,7 +126,8 @@ def _splat(g: _Grid, i: int, j: int, offsets, prio, zbuf, zkeys) -> None:
 
 
 def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, *,
-                    edge_rel: float = DEFAULT_EDGE_REL, footprint: int | None = None) -> np.ndarray:
+                    edge_rel: float = DEFAULT_EDGE_REL, footprint: int | None = None,
+                    edge_reach: float = 0.5) -> np.ndarray:
     """The algorithm of :class:`align.warp.DepthWarper` as a per-pixel Python loop (slow, float64).
 
     Returns ``(H_dst, W_dst)`` float32 metres, NaN where nothing lands.
@@ -141,7 +142,7 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
     for i in range(H):
         for j in range(W):
             if g.w[i, j] > 0:
-                _splat(g, i, j, offsets, prio, zbuf, zkeys)
+                _splat(g, i, j, offsets, prio, zbuf, zkeys, edge_reach)
     out = np.full(K_dst.shape, np.nan, np.float32)
     out[zbuf > 0] = (1.0 / zbuf[zbuf > 0]).astype(np.float32)
     return out

@@ -51,6 +51,9 @@ class SplatGrid:
         k: splat block size (destination pixels per side). r: padding of the z-buffer on every
         side (absorbs targets just outside the image). width, height: destination image, px.
         offsets: the ``k x k`` offsets :func:`splat_offsets` gives, in priority order.
+        edge_reach: how far, in source-grid steps, a point's splat reaches towards a neighbour on
+        another surface (see :mod:`align.warp`, step 4): 0.5 puts the edge at the midpoint, 0
+        extrapolates nothing past the last sample; in ``[0, 1)``.
     """
 
     k: int
@@ -58,6 +61,7 @@ class SplatGrid:
     width: int
     height: int
     offsets: tuple
+    edge_reach: float = 0.5
 
     @property
     def padded_width(self) -> int:

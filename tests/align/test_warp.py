@@ -36,16 +36,16 @@ def _surface_distance(P, shape):
 
 
 @pytest.mark.parametrize("engine", ["numpy", "numba"])
-@pytest.mark.parametrize("footprint", [None, 4])
-def test_vectorised_equals_loop_reference(footprint, engine):
+@pytest.mark.parametrize("footprint,edge_reach", [(None, 0.5), (4, 0.5), (None, 0.0)])
+def test_vectorised_equals_loop_reference(footprint, edge_reach, engine):
     # small cameras (fast loop), distortion on both, a noisy source with holes and a flying pixel
     Kh, Kl, T_lq_hq, T_hq_world, _ = _rig(scale=0.1)
     d, _, _ = _truth(Kh, T_hq_world, room())
     rng = np.random.default_rng(0)
     d = (d * (1 + 0.002 * rng.standard_normal(d.shape))).astype(np.float32)
     d[rng.random(d.shape) < 0.03] = np.nan
-    fast = DepthWarper(Kh, Kl, T_lq_hq, footprint=footprint, engine=engine)(d)
-    slow = warp_depth_loop(d, Kh, Kl, T_lq_hq, footprint=footprint)
+    fast = DepthWarper(Kh, Kl, T_lq_hq, footprint=footprint, engine=engine, edge_reach=edge_reach)(d)
+    slow = warp_depth_loop(d, Kh, Kl, T_lq_hq, footprint=footprint, edge_reach=edge_reach)
     both = np.isfinite(fast) & np.isfinite(slow)
     assert np.isfinite(slow).sum() > 0.5 * slow.size
     # float32 against float64: a decision may flip on a threshold for a rare pixel
@@ -167,14 +167,15 @@ def test_noise_is_carried_without_bias():
     assert np.median(np.abs(err)) < 0.75 * sigma  # ~0.67 sigma for Gaussian noise carried one to one
 
 
-def test_numba_and_numpy_engines_agree():
+@pytest.mark.parametrize("edge_reach", [0.5, 0.0, 0.25])
+def test_numba_and_numpy_engines_agree(edge_reach):
     Kh, Kl, T_lq_hq, T_hq_world, _ = _rig(scale=0.25)
     d, _, _ = _truth(Kh, T_hq_world, room())
     rng = np.random.default_rng(4)
     d = (d * (1 + 0.003 * rng.standard_normal(d.shape))).astype(np.float32)
     d[rng.random(d.shape) < 0.02] = np.nan
-    a = DepthWarper(Kh, Kl, T_lq_hq, engine="numba")(d)
-    b = DepthWarper(Kh, Kl, T_lq_hq, engine="numpy")(d)
+    a = DepthWarper(Kh, Kl, T_lq_hq, engine="numba", edge_reach=edge_reach)(d)
+    b = DepthWarper(Kh, Kl, T_lq_hq, engine="numpy", edge_reach=edge_reach)(d)
     assert np.array_equal(np.isnan(a), np.isnan(b))
     assert np.nanmax(np.abs(a - b)) < 1e-6
 

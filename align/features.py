@@ -171,6 +171,27 @@ def lift(xy: np.ndarray, depth_in_color: np.ndarray, K_color: Intrinsics, *, edg
     return K_color.unproject(np.asarray(xy, np.float64), z)
 
 
+def inverse_depth_gradient(depth_in_color: np.ndarray, xy: np.ndarray, *, step_px: float = 4.0,
+                           edge_rel: float = 0.02) -> np.ndarray:
+    """Gradient of inverse depth ``d(1/z)/d(x, y)`` at keypoints ``(N, 2)``: ``(N, 2)`` 1/(m px).
+
+    Central differences over ``+-step_px``; 0 where a sample lies on an edge or has no depth.
+    Inverse depth is affine in the image on a plane, so ``1/z(q + dq) = 1/z(q) + g . dq`` is exact
+    there: the alignment loop uses it to re-sample a keypoint's depth when a lens model moves the
+    keypoint's ray (:mod:`align.loop.effects.lens`).
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    g = np.zeros_like(xy)
+    for axis in (0, 1):
+        e = np.zeros(2)
+        e[axis] = step_px
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = (1 / sample_depth(depth_in_color, xy + e, edge_rel=edge_rel)
+                 - 1 / sample_depth(depth_in_color, xy - e, edge_rel=edge_rel)) / (2 * step_px)
+        g[:, axis] = np.where(np.isfinite(d), d, 0.0)
+    return g
+
+
 def track(frames: list[np.ndarray], anchor: int, xy: np.ndarray, *, fb_px: float = 0.5, win: int = 21,
           levels: int = 3) -> np.ndarray:
     """Follow keypoints from ``frames[anchor]`` through the neighbouring frames (pyramidal KLT).

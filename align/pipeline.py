@@ -40,7 +40,7 @@ from align.association import associate, nearest_mapping, overlap_us
 from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
-from align.features import FEATURES, detect, lift, match, track
+from align.features import FEATURES, detect, inverse_depth_gradient, lift, match, track
 from align.residuals import depth_residual, outliers, robust_summary
 from align.reference_edges import EdgeRule
 from align.roi import background_depth, foreground_mask
@@ -269,6 +269,7 @@ class ProbeBuilder:
                          tracks=np.empty((win.size, 0, 2)), anchor=anchor)
         fh = type(fh)(fh.xy[ok], fh.descriptors[ok], fh.kind)
         X = X[ok]
+        w_grad = inverse_depth_gradient(d_col, fh.xy)
         greys, rgb_anchor = [], None
         for k, j in enumerate(win):
             rgb = sess.read_color(s.lq, int(s.f_lq_c[j]), stream=s.lq_color)
@@ -280,7 +281,7 @@ class ProbeBuilder:
         ia, ib = match(fh, fl)
         tracks = track(greys, anchor, fl.xy[ib])
         return Probe(hq_index=i, t_hq_us=t, points=X[ia], lq_index=win, t_lq_us=s.t_lq_c[win], tracks=tracks,
-                     anchor=anchor)
+                     anchor=anchor, w_grad=w_grad[ia])
 
 
 def _detect_scale(image: np.ndarray, scale: float | None) -> float:

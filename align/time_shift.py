@@ -81,6 +81,8 @@ class Probe:
         lq_index: ``(M,)`` positions of the window's LQ frames. t_lq_us: ``(M,)`` their stamps.
         tracks: ``(M, N, 2)`` LQ colour pixels of each keypoint per window frame (NaN = lost).
         anchor: index into the window of the LQ frame the keypoints were matched in.
+        w_grad: ``(N, 2)`` gradient of inverse depth at each keypoint in the HQ colour image, 1/(m px)
+            (:func:`align.features.inverse_depth_gradient`), or ``None`` (taken as 0).
     """
 
     hq_index: int
@@ -90,6 +92,7 @@ class Probe:
     t_lq_us: np.ndarray
     tracks: np.ndarray
     anchor: int
+    w_grad: np.ndarray | None = None
 
     @property
     def n_features(self) -> int:

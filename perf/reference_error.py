@@ -12,9 +12,9 @@ is left), and compared with the LQ truth depth on the region of interest compute
   by more than 50 mm (issue 12: on the demo, MAE 6.0 mm beside RMSE 64.9 mm);
 * where the large errors are: which side (reference nearer or farther than truth), within 2 px of a
   hole of the reference, within 3 px of a depth edge of the truth, of the reference;
-* what masking reference pixels near edges would buy (RMSE and masked share of the ROI), for
-  two masks: the far side of a reference depth edge (within ``r`` px of a surface 3 % nearer), and
-  that plus the pixels next to a hole.
+* the same for each edge rule of :mod:`align.reference_edges` (``midpoint``: the plain warp;
+  ``strict``: the aligned dataset's default), with the share of ROI pixels the rule masked and
+  the share of ROI pixels without a reference at all (holes of the HQ sensor, shadows, masks).
 """
 from __future__ import annotations
 
@@ -23,6 +23,7 @@ import argparse
 import cv2
 import numpy as np
 
+from align.reference_edges import RULES, EdgeRule
 from align.roi import background_depth, foreground_mask
 from align.warp import DepthWarper
 from capture.session import open_session
@@ -40,16 +41,6 @@ def _edge(z: np.ndarray, rel: float = 0.03) -> np.ndarray:
     return (f > 0) & (cv2.dilate(f, _disk(1)) - near > rel * f)
 
 
-def _far_side(z: np.ndarray, r: int, rel: float = 0.03) -> np.ndarray:
-    near = cv2.erode(np.where(np.isfinite(z), z, np.inf).astype(np.float32), _disk(r))
-    with np.errstate(invalid="ignore"):
-        return np.isfinite(z) & (z - near > rel * near)
-
-
-def _near_hole(z: np.ndarray, r: int) -> np.ndarray:
-    return np.isfinite(z) & (cv2.dilate((~np.isfinite(z)).astype(np.uint8), _disk(r)) > 0)
-
-
 def _within(mask: np.ndarray, r: float) -> np.ndarray:
     return cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, 5) <= r
 
@@ -60,46 +51,48 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=6, help="LQ frames spread over the session (default: %(default)s)")
     args = ap.parse_args()
     sess, tr = open_session(args.session), read_truth(args.session)
-    W = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), tr.T_lq_hq)
     t_hq, t_lq = sess.timestamps_us("hq"), sess.timestamps_us("lq")
     f_hq = sess.frames("hq", "depth")["frame_number"].to_numpy()
     f_lq = sess.frames("lq", "depth")["frame_number"].to_numpy()
-    rows = []
+    pairs = []
     for j in np.linspace(2, f_lq.size - 3, args.frames).round().astype(int):
         s = t_lq[j] - tr.time_shift_at_us(t_lq[j])
         i = int(np.argmin(np.abs(t_hq - s)))
-        rows.append((s - t_hq[i], W(sess.read_depth("hq", int(f_hq[i]))), tr.depth("lq", int(f_lq[j])),
-                     sess.read_depth("lq", int(f_lq[j]))))
-    bg = background_depth(np.stack([np.where(np.isfinite(r), r, lq) for _, r, _, lq in rows]))
-    masks = {"none": lambda r: np.zeros(r.shape, bool)}
-    for rad in (1, 2, 3):
-        masks[f"far side of an edge, {rad} px"] = lambda r, rad=rad: _far_side(r, rad)
-        masks[f"far side {rad} px + next to a hole"] = lambda r, rad=rad: _far_side(r, rad) | _near_hole(r, 1)
+        pairs.append((s - t_hq[i], sess.read_depth("hq", int(f_hq[i])), tr.depth("lq", int(f_lq[j])),
+                      sess.read_depth("lq", int(f_lq[j]))))
+    print(f"{len(pairs)} pairs, HQ-LQ time apart (ms): {', '.join(f'{dt / 1000:+.2f}' for dt, *_ in pairs)}")
+    bg = None
+    for name in RULES:
+        rule = EdgeRule.named(name)
+        W = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), tr.T_lq_hq, edge_reach=rule.edge_reach)
+        rows = [(rule.apply(W(hq)), truth, lq) for _, hq, truth, lq in pairs]
+        if bg is None:  # one background model (from the plain warp) for every rule
+            bg = background_depth(np.stack([np.where(np.isfinite(r), r, lq) for (r, _), _, lq in rows]))
+        _report(name, rows, bg)
+
+
+def _report(name: str, rows, bg) -> None:
     where = dict.fromkeys(("large", "ref farther", "ref nearer", "<= 2 px from a hole", "<= 3 px from a truth edge",
                            "<= 3 px from a reference edge"), 0)
-    print(f"{len(rows)} pairs, HQ-LQ time apart (ms): {', '.join(f'{dt / 1000:+.2f}' for dt, *_ in rows)}")
-    for name, mask in masks.items():
-        err, n_roi, n_masked = [], 0, 0
-        for _, ref, truth, lq in rows:
-            roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), bg)
-            m = mask(ref)
-            use = roi & np.isfinite(ref) & np.isfinite(truth)
-            n_roi, n_masked = n_roi + use.sum(), n_masked + (use & m).sum()
-            e = ref - truth
-            err.append(e[use & ~m])
-            if name == "none":
-                big = use & (np.abs(e) > 0.05)
-                for key, sel in (("large", big), ("ref farther", big & (e > 0)), ("ref nearer", big & (e < 0)),
-                                 ("<= 2 px from a hole", big & _within(~np.isfinite(ref), 2)),
-                                 ("<= 3 px from a truth edge", big & _within(_edge(truth), 3)),
-                                 ("<= 3 px from a reference edge", big & _within(_edge(ref), 3))):
-                    where[key] += int(sel.sum())
-        e = np.abs(np.concatenate(err)) * 1000
-        print(f"mask {name:34s}: MAE {e.mean():5.2f} mm  RMSE {np.sqrt(np.mean(e ** 2)):6.2f} mm  "
-              f"> 50 mm {100 * np.mean(e > 50):.3f} %  masked {100 * n_masked / n_roi:.2f} % of ROI pixels")
-        if name == "none":
-            print("  errors > 50 mm: " + ", ".join(f"{k} {v}" if k == "large" else f"{k} {100 * v / max(where['large'], 1):.0f} %"
-                                                   for k, v in where.items()))
+    err, n_roi, n_masked, n_none = [], 0, 0, 0
+    for (ref, mask), truth, lq in rows:
+        roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), bg) & np.isfinite(truth)
+        use = roi & np.isfinite(ref)
+        n_roi, n_masked, n_none = n_roi + roi.sum(), n_masked + (roi & mask).sum(), n_none + (roi & ~use).sum()
+        e = ref - truth
+        err.append(e[use])
+        big = use & (np.abs(e) > 0.05)
+        for key, sel in (("large", big), ("ref farther", big & (e > 0)), ("ref nearer", big & (e < 0)),
+                         ("<= 2 px from a hole", big & _within(~np.isfinite(ref), 2)),
+                         ("<= 3 px from a truth edge", big & _within(_edge(truth), 3)),
+                         ("<= 3 px from a reference edge", big & _within(_edge(ref), 3))):
+            where[key] += int(sel.sum())
+    e = np.abs(np.concatenate(err)) * 1000
+    print(f"rule {name:8s}: MAE {e.mean():5.2f} mm  RMSE {np.sqrt(np.mean(e ** 2)):6.2f} mm  > 50 mm "
+          f"{100 * np.mean(e > 50):.3f} %  masked by the rule {100 * n_masked / n_roi:.2f} %  "
+          f"no reference {100 * n_none / n_roi:.2f} % of ROI pixels")
+    print("  errors > 50 mm: " + ", ".join(f"{k} {v}" if k == "large" else f"{k} {100 * v / max(where['large'], 1):.0f} %"
+                                           for k, v in where.items()))
 
 
 if __name__ == "__main__":

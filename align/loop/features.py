@@ -39,6 +39,7 @@ class FeatureData:
         t_hq_us: ``(F,)`` HQ stamps. probe: ``(F,)`` probe index (0..P-1, in time order).
         t0_us: origin of the drift term. K_lq: LQ colour camera. K_hq: HQ colour camera (as declared).
         T_hqcolor_hqdepth: the HQ's own calibration.
+        w_grad: ``(F, 2)`` gradient of inverse depth at each HQ colour pixel, 1/(m px) (0: unknown).
     """
 
     points: np.ndarray
@@ -51,6 +52,7 @@ class FeatureData:
     K_lq: Intrinsics
     K_hq: Intrinsics
     T_hqcolor_hqdepth: Transform
+    w_grad: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
@@ -62,11 +64,11 @@ class FeatureData:
     def subset(self, keep: np.ndarray) -> "FeatureData":
         return FeatureData(self.points[keep], self.hq_xy[keep], self.tracks[keep], self.rel_us[keep],
                            self.t_hq_us[keep], self.probe[keep], self.t0_us, self.K_lq, self.K_hq,
-                           self.T_hqcolor_hqdepth)
+                           self.T_hqcolor_hqdepth, None if self.w_grad is None else self.w_grad[keep])
 
     def with_tracks(self, tracks: np.ndarray) -> "FeatureData":
         return FeatureData(self.points, self.hq_xy, tracks, self.rel_us, self.t_hq_us, self.probe, self.t0_us,
-                           self.K_lq, self.K_hq, self.T_hqcolor_hqdepth)
+                           self.K_lq, self.K_hq, self.T_hqcolor_hqdepth, self.w_grad)
 
 
 def pack_probes(probes, *, K_lq: Intrinsics, K_hq: Intrinsics, T_hqcolor_hqdepth: Transform, t0_us: float,
@@ -85,7 +87,7 @@ def pack_probes(probes, *, K_lq: Intrinsics, K_hq: Intrinsics, T_hqcolor_hqdepth
         full = np.all(np.isfinite(tr), axis=(0, 2)) if tr.shape[0] >= 2 else np.zeros(tr.shape[1], bool)
         cols.append((p, use, full))
     M = max([int(u.sum()) for _, u, _ in cols] + [2])
-    parts = {k: [] for k in ("X", "tr", "rel", "t", "pid")}
+    parts = {k: [] for k in ("X", "tr", "rel", "t", "pid", "g")}
     pid = 0
     for p, use, full in cols:
         n = int(full.sum())
@@ -97,6 +99,7 @@ def pack_probes(probes, *, K_lq: Intrinsics, K_hq: Intrinsics, T_hqcolor_hqdepth
         rel = np.full((n, M), np.inf)
         rel[:, :m] = (p.t_lq_us[use] - p.t_hq_us).astype(np.float64)
         parts["X"].append(p.points[full])
+        parts["g"].append(np.zeros((n, 2)) if p.w_grad is None else p.w_grad[full])
         parts["tr"].append(tr)
         parts["rel"].append(rel)
         parts["t"].append(np.full(n, float(p.t_hq_us)))
@@ -109,7 +112,8 @@ def pack_probes(probes, *, K_lq: Intrinsics, K_hq: Intrinsics, T_hqcolor_hqdepth
     X = np.concatenate(parts["X"])
     hq_xy = K_hq.project(T_hqcolor_hqdepth.apply(X))
     return FeatureData(X, hq_xy, np.concatenate(parts["tr"]), np.concatenate(parts["rel"]), np.concatenate(parts["t"]),
-                       np.concatenate(parts["pid"]), float(t0_us), K_lq, K_hq, T_hqcolor_hqdepth)
+                       np.concatenate(parts["pid"]), float(t0_us), K_lq, K_hq, T_hqcolor_hqdepth,
+                       np.concatenate(parts["g"]))
 
 
 def interpolate_tracks(tracks: np.ndarray, stamps: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -157,3 +157,36 @@ def test_bootstrap_threshold_controls_false_alarms_on_noise():
     r0 = rng.normal(0, 0.3, G * per) + 0.2 * J[:, 1]
     p = LinearProblem(r0, J, group, 1.0, ["base", "a"])
     assert compare(HeldOut(p, np.arange(2), folds_of(G)), np.array([0]), np.array([1])).z > 5
+
+
+def test_hq_lens_correction_resamples_depth_on_the_corrected_ray():
+    # a slanted plane seen by an HQ colour camera with an undeclared k1: a keypoint at the distorted
+    # pixel q_d was lifted with the depth found at q_d in the (undistorted) registered depth image;
+    # the true point lies on the ray of undistort(q_d) -- on the plane only if its depth is re-sampled
+    from align.features import inverse_depth_gradient
+    from align.loop.effects.lens import LensDistortion, add_coeffs
+    from align.loop.features import FeatureData
+    from capture.camera import Intrinsics, Transform
+
+    K = Intrinsics(320, 240, 260.0, 260.0, 159.5, 119.5)
+    n_plane, c_plane = np.array([0.3, -0.2, 1.0]), 2.0  # plane n . X = c (colour camera frame)
+    xs, ys = np.meshgrid(np.arange(320), np.arange(240))
+    rays = np.stack([(xs - K.cx) / K.fx, (ys - K.cy) / K.fy, np.ones_like(xs, float)], -1)
+    depth_img = (c_plane / (rays @ n_plane)).astype(np.float32)  # registered depth, declared model
+    rng = np.random.default_rng(0)
+    q_d = rng.uniform([30, 30], [290, 210], size=(50, 2))
+    z_at_qd = c_plane / (np.c_[(q_d - [K.cx, K.cy]) / [K.fx, K.fy], np.ones(50)] @ n_plane)
+    n_d = (q_d - [K.cx, K.cy]) / [K.fx, K.fy]
+    X0 = np.c_[n_d * z_at_qd[:, None], z_at_qd]  # lifted without the lens, as the probes do
+    base = dict(points=X0, hq_xy=q_d, tracks=np.zeros((50, 2, 2)), rel_us=np.zeros((50, 2)), t_hq_us=np.zeros(50),
+                probe=np.zeros(50, int), t0_us=0.0, K_lq=K, K_hq=K, T_hqcolor_hqdepth=Transform.identity())
+    lens = LensDistortion("hq", ("k1",))
+    k1 = 0.1
+    n_true = add_coeffs(K.without_distortion(), {"k1": k1}).undistort(n_d, iterations=5)
+    off_plane = {}
+    for name, g in (("kept", None), ("resampled", inverse_depth_gradient(depth_img, q_d))):
+        X = lens.correct_points(FeatureData(**base, w_grad=g), X0, np.array([k1]))
+        assert np.allclose(X[:, :2] / X[:, 2:], n_true, atol=1e-9)  # on the corrected ray either way
+        off_plane[name] = np.abs(X @ n_plane - c_plane) / np.linalg.norm(n_plane)
+    assert np.max(off_plane["kept"]) > 5e-3 and np.median(off_plane["kept"]) > 5e-4  # metres: off the plane
+    assert np.max(off_plane["resampled"]) < 2e-4  # exact on a plane up to float32 and the gradient's differences

@@ -3,8 +3,11 @@ added to the declared coefficients.
 
 Enabled in stages (``k1``, then ``k2``, then ``p1, p2``), each stage an effect of its own. LQ
 camera: the HQ points are projected through the distortion. HQ camera: each HQ keypoint's ray
-is undistorted before it is lifted (its depth, sampled at the keypoint, is kept). Signature:
-feature residual growing with the radius from the principal point.
+is undistorted before it is lifted, and its depth re-sampled where the corrected ray meets the
+registered HQ depth (first order in inverse depth, exact on planes: the keypoint moves by up to
+tens of pixels at k1 = 0.1; on rendered sessions this moved the k1 estimate only from 0.1047 to
+0.1046 against a truth of 0.1, so the remaining bias comes from elsewhere). Signature: feature residual growing with the radius from the
+principal point.
 """
 from __future__ import annotations
 
@@ -55,6 +58,9 @@ class LensDistortion(Effect):
         n = np.stack([(data.hq_xy[:, 0] - K.cx) / K.fx, (data.hq_xy[:, 1] - K.cy) / K.fy], axis=1)
         Kd = add_coeffs(K.without_distortion(), dict(zip(self.params, v)))
         n_true = Kd.undistort(n, iterations=5)
+        if data.w_grad is not None:  # the depth where the corrected ray meets the registered depth image
+            w = 1 / z + np.sum(data.w_grad * (n_true - n) * np.array([K.fx, K.fy]), axis=1)
+            z = np.where(w > 0, 1 / np.where(w > 0, w, 1), z)
         return data.T_hqcolor_hqdepth.inverse().apply(np.concatenate([n_true * z[:, None], z[:, None]], axis=1))
 
     def declared_values(self, declared: dict) -> np.ndarray | None:

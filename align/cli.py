@@ -49,7 +49,7 @@ def register(subparsers) -> None:
                    help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
     g.add_argument("--reference-edges", choices=("strict", "midpoint"), default="strict",
                    help="the reference at depth edges: strict extends no surface past its last HQ sample and masks the "
-                        "far side of every reference edge (2 px, counted in aligned.json); midpoint guesses the edge half "
+                        "far side of every reference edge (3 px, counted in aligned.json); midpoint guesses the edge half "
                         "way and masks nothing (default: %(default)s)")
     g = p.add_argument_group("effects (the alignment loop, align/loop)")
     g.add_argument("--no-loop", action="store_true",

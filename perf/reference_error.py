@@ -62,7 +62,7 @@ def main() -> None:
                       sess.read_depth("lq", int(f_lq[j]))))
     print(f"{len(pairs)} pairs, HQ-LQ time apart (ms): {', '.join(f'{dt / 1000:+.2f}' for dt, *_ in pairs)}")
     bg = None
-    for name in RULES:
+    for name in sorted(RULES, key=lambda n: n != "midpoint"):
         rule = EdgeRule.named(name)
         W = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), tr.T_lq_hq, edge_reach=rule.edge_reach)
         rows = [(rule.apply(W(hq)), truth, lq) for _, hq, truth, lq in pairs]

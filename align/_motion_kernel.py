@@ -1,5 +1,6 @@
 """The compiled search of :mod:`align.motion` (rule 2): for each pixel an edge crossed, the
-distances to the two positions of that edge (imported on first use: numba takes a while to import)."""
+distances to the two positions of that edge, along the direction it moved (imported on first use:
+numba takes a while to import)."""
 from __future__ import annotations
 
 import numba
@@ -7,13 +8,15 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def edge_distances(A, B, ys, xs, mids, dy, dx, dist, out_a, out_b):  # pragma: no cover - compiled
+def edge_distances(A, B, ys, xs, mids, ray_dy, ray_dx, ray_d, out_a, out_b):  # pragma: no cover - compiled
     """Per pixel ``k`` at ``(ys[k], xs[k])`` with midpoint depth ``mids[k]``: ``out_a[k], out_b[k]``,
-    the distances (px, between pixel centres) to the edge's positions in the two frames (module
-    docstring of :mod:`align.motion`), ``inf`` when not found within the offsets ``(dy, dx)``
-    (sorted by ``dist``). A pixel whose two depths sit on one side of its midpoint gets ``-1``."""
+    the distances (px, between pixel centres) to the edge's positions in frames A and B (module
+    docstring of :mod:`align.motion`), ``inf`` when not found. The other position of the occluder
+    (near in A for an arriving one, near in B for a leaving one) is looked for along every ray
+    ``(ray_dy[r], ray_dx[r])`` (distances ``ray_d[r]``, increasing); the far-in-both surface along the
+    opposite ray of the nearest hit. A pixel whose two depths sit on one side of its midpoint gets ``-1``."""
     H, W = A.shape
-    n_off = dy.size
+    n_rays, n_steps = ray_dy.shape
     for k in range(ys.size):
         y, x, mid = ys[k], xs[k], mids[k]
         near_a = A[y, x] < mid
@@ -24,27 +27,38 @@ def edge_distances(A, B, ys, xs, mids, dy, dx, dist, out_a, out_b):  # pragma: n
             out_a[k] = -1.0
             out_b[k] = -1.0
             continue
-        arriving = near_b
+        arriving = near_b  # the occluder is where B saw it; where A saw it is the other position
+        best = np.inf
+        best_r = -1
+        for r in range(n_rays):
+            for s in range(n_steps):
+                if ray_d[r, s] >= best:
+                    break
+                qy = y + ray_dy[r, s]
+                qx = x + ray_dx[r, s]
+                if qy < 0 or qy >= H or qx < 0 or qx >= W:
+                    break
+                if (A[qy, qx] < mid) if arriving else (B[qy, qx] < mid):
+                    best = ray_d[r, s]
+                    best_r = r
+                    break
+        if best_r < 0:
+            continue
         d_ff = np.inf
-        d_near = np.inf  # near in A (arriving) or near in B (leaving)
-        for o in range(n_off):
-            if d_ff < np.inf and d_near < np.inf:
-                break
-            qy = y + dy[o]
-            qx = x + dx[o]
+        opp = (best_r + n_rays // 2) % n_rays  # the edge moved along the nearest hit's ray
+        for s in range(n_steps):
+            qy = y + ray_dy[opp, s]
+            qx = x + ray_dx[opp, s]
             if qy < 0 or qy >= H or qx < 0 or qx >= W:
-                continue
+                break
             a = A[qy, qx]
             b = B[qy, qx]
-            na = a < mid
-            nb = b < mid
-            if d_ff == np.inf and not na and not nb and (a == a or b == b):
-                d_ff = dist[o]
-            if d_near == np.inf and ((arriving and na) or (not arriving and nb)):
-                d_near = dist[o]
+            if not (a < mid) and not (b < mid) and (a == a or b == b):
+                d_ff = ray_d[opp, s]
+                break
         if arriving:
-            out_a[k] = d_near
+            out_a[k] = best
             out_b[k] = d_ff
         else:
             out_a[k] = d_ff
-            out_b[k] = d_near
+            out_b[k] = best

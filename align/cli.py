@@ -56,6 +56,12 @@ def register(subparsers) -> None:
                    help="skip the effect loop (drift, rolling shutter, lens, depth scale/offset, duplicated frames)")
     g.add_argument("--keep-lq-depth", action="store_true",
                    help="write the LQ depth as recorded even when the loop finds a depth scale or offset")
+    g = p.add_argument_group("motion between unsynchronised frames (align/motion.py)")
+    g.add_argument("--no-motion", action="store_true",
+                   help="keep the plain warp of the pair's HQ frame as the reference, even when the LQ frame falls "
+                        "between two HQ frames (default: the reference is carried to the LQ instant from both)")
+    g.add_argument("--motion-min-dt-ms", type=float, default=1.0, metavar="MS",
+                   help="pairs closer in time than this keep the plain warp (default: %(default)g)")
     g = p.add_argument_group("output")
     g.add_argument("--no-truth", action="store_true", help="do not attach the simulator's truth depth (simulated sessions)")
     g.add_argument("--no-report", action="store_true", help="skip report.md and the figures")
@@ -83,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
             time_model=args.time_model, workers=args.workers,
             on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
             report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
-            loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth, reference_edges=args.reference_edges)
+            loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth, reference_edges=args.reference_edges,
+            motion=not args.no_motion, motion_min_dt_ms=args.motion_min_dt_ms)
     except AlignError as exc:
         raise _with_flag(exc)
     sh = r.shift
@@ -99,11 +106,28 @@ def run(args: argparse.Namespace) -> int:
         found = [f"{f.name} ({', '.join(f'{k} {v:.4g}' for k, v in f.params.items())})" for f in loop.findings]
         print(f"  effects: {'; '.join(found) if found else 'none needed'}"
               + (f"; unexplained: {', '.join(s.name for s in loop.unexplained())}" if loop.unexplained() else ""))
+    motion = _motion_line(r.out)
+    if motion:
+        print(motion)
     dropped = r.dropped if isinstance(r.dropped, dict) else {}
     print(f"  pairs kept: {r.kept}" + (f"; dropped: {dropped}" if dropped else ""))
     if r.report is not None:
         print(f"  report: {r.report}")
     return 0
+
+
+def _motion_line(out) -> str:
+    """One line on the motion compensation from the dataset's aligned.json ('' for multi-view rigs)."""
+    import json
+    from pathlib import Path
+
+    path = Path(out) / "aligned.json"
+    m = json.loads(path.read_text()).get("motion") if path.is_file() else None
+    if not m or not m.get("enabled"):
+        return "  motion: off" if m else ""
+    t = m["time_apart_ms"]
+    return (f"  motion: {m['compensated']} of {m['pairs']} pairs carried to the LQ instant (frames "
+            f"{t['median']:.1f} ms apart, median); masked {100 * m['masked_share']:.2f} % of reference pixels")
 
 
 #: AlignOptions fields whose flag is not ``--`` + the name with dashes

@@ -36,9 +36,11 @@ with the ordinary warp (:class:`align.warp.DepthWarper`, used as it is), giving 
    * occluder leaving (near in ``A`` only): its trailing edge was ``a = dist(p, FF)`` behind ``p``
      at ``t_a`` and ``b = dist(p, near in B)`` ahead at ``t_b``
 
-   (distances between pixel centres along 16 rays, less half a pixel each: an edge lies between two
-   pixels). A limb that moved more than its own width is covered too: ``FF``, not the other
-   position's pixels, is what the edge is measured from. At the LQ instant the edge has passed
+   (distances between pixel centres, less half a pixel each: an edge lies between two pixels).
+   The other position of the occluder (near in A when arriving, near in B when leaving) is looked
+   for along 16 rays; the nearest hit gives the direction the edge moved, and ``FF`` is looked for
+   along the opposite ray, so a narrow limb's far side does not pass for its trailing edge. At the
+   LQ instant the edge has passed
    ``p`` by ``s = alpha (a + b) - a`` pixels; the pixel shows the other frame's surface when ``s``
    passes ``p`` by more than ``margin_px`` towards it (1 px by default: closer than that the two
    frames' own edge errors, a pixel or so, decide more often wrongly than the own frame), else the
@@ -56,8 +58,11 @@ passed here at all (:class:`MotionReference` keeps the plain warp, bit for bit).
 
 Why edges and not flow: per-point optical flow on depth images was tried first and made the
 reference worse (5.3 -> 7.1 mm MAE): it is noisy per point. Distances to whole surfaces are smooth
-along an edge by construction. What neither frame saw cannot be recovered this way (a limb that
-passed a pixel between the two frames; a surface turning): that error remains.
+along an edge by construction. What neither frame saw cannot be recovered this way: a limb that
+moved more than its own width passes pixels both frames saw as background, and a surface that
+turns shows a depth neither frame had; that error remains (on people walking 7 ms out of phase
+it is most of what is left: choosing per pixel whichever of the two frames is right, with the
+truth, would leave ~19 mm MAE where the plain warp has ~33 mm; see the notes of issue 12).
 """
 from __future__ import annotations
 
@@ -192,19 +197,14 @@ _KERNEL: list = []
 
 
 def _offsets(radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixel offsets along ``RAYS`` directions out to ``radius``, nearest first: ``(dy, dx, dist)``
-    (the nearest pixel of a set along 16 rays is within ~2 % of the nearest in any direction, for a
-    tenth of the look-ups)."""
+    """``RAYS`` rays of pixel offsets out to ``radius``: ``(dy, dx, dist)``, each ``(RAYS, steps)``,
+    ray ``r`` at angle ``2 pi r / RAYS`` (ray ``r + RAYS / 2`` the opposite one)."""
     if radius not in _OFFSETS:
         theta = np.arange(RAYS) * (2 * np.pi / RAYS)
         steps = np.arange(1, int(np.floor(radius)) + 1)
-        dy = np.rint(np.outer(steps, np.sin(theta))).astype(np.int64).ravel()
-        dx = np.rint(np.outer(steps, np.cos(theta))).astype(np.int64).ravel()
-        pairs = np.unique(np.stack([dy, dx], 1), axis=0)
-        d = np.hypot(pairs[:, 0], pairs[:, 1])
-        keep = (d > 0) & (d <= radius)
-        order = np.lexsort((pairs[keep, 1], pairs[keep, 0], d[keep]))
-        _OFFSETS[radius] = (pairs[keep, 0][order].copy(), pairs[keep, 1][order].copy(), d[keep][order].astype(np.float32))
+        dy = np.rint(np.outer(np.sin(theta), steps)).astype(np.int64)
+        dx = np.rint(np.outer(np.cos(theta), steps)).astype(np.int64)
+        _OFFSETS[radius] = (dy, dx, np.hypot(dy, dx).astype(np.float32))
     return _OFFSETS[radius]
 
 
@@ -237,8 +237,9 @@ def bracket(t_hq_us: np.ndarray, i: int, dt_us: float, *, max_gap: float = 1.6) 
 @dataclass(frozen=True)
 class PairMotion:
     """How one pair's reference was made: ``dt_us`` (LQ instant minus its HQ frame's, µs), the HQ
-    frames ``a, b`` and ``alpha`` when compensated (``None`` otherwise), ``masked`` pixels (rule 2),
-    ``valid`` finite reference pixels."""
+    frame indices ``a, b`` and ``alpha`` when compensated (``None`` otherwise), ``masked`` pixels
+    (:attr:`Compensated.masked`, and ``masked_map`` the ``(H, W)`` bool image of them), ``valid``
+    finite reference pixels, ``reason`` why not compensated."""
 
     dt_us: float
     frames: tuple[int, int] | None
@@ -246,6 +247,7 @@ class PairMotion:
     masked: int
     valid: int
     reason: str = ""
+    masked_map: np.ndarray | None = None
 
 
 class MotionReference:
@@ -293,4 +295,35 @@ class MotionReference:
         a, b, alpha = br
         r = compensate_motion(self.warp(a), self.warp(b), alpha, own="a" if a == i else "b", edge_rel=self.edge_rel,
                               max_motion_px=self.max_motion_px)
-        return r.depth, PairMotion(float(dt_us), (a, b), alpha, r.n_masked, int(np.isfinite(r.depth).sum()))
+        return r.depth, PairMotion(float(dt_us), (a, b), alpha, r.n_masked, int(np.isfinite(r.depth).sum()),
+                                   masked_map=r.masked)
+
+
+def motion_summary(pairs: list, *, enabled: bool, min_dt_ms: float) -> dict:
+    """``aligned.json``'s ``motion`` object from ``[(lq_frame, PairMotion, roi_valid, roi_masked)]``
+    (``roi_*``: reference pixels with depth / masked inside the region of interest, ``None`` without one).
+
+    Shares are of the pixels the plain warp has depth at (``masked / (valid + masked)``); per pair
+    the time apart (ms, LQ instant minus its HQ frame's), ``alpha`` and the masked pixels.
+    """
+    dt = np.array([abs(pm.dt_us) for _, pm, _, _ in pairs], float) / 1000
+    comp = [pm for _, pm, _, _ in pairs if pm.frames is not None]
+    masked = sum(pm.masked for pm in comp)
+    valid = sum(pm.valid for _, pm, _, _ in pairs)
+    roi = [(v, m) for _, _, v, m in pairs if v is not None]
+    roi_masked, roi_valid = sum(m for _, m in roi), sum(v for v, _ in roi)
+    why: dict[str, int] = {}
+    for _, pm, _, _ in pairs:
+        if pm.reason:
+            why[pm.reason] = why.get(pm.reason, 0) + 1
+    return {
+        "model": "align.motion: reference at the LQ instant from the two HQ frames around it" if enabled else "off",
+        "enabled": bool(enabled), "min_dt_ms": float(min_dt_ms), "pairs": len(pairs), "compensated": len(comp),
+        "not_compensated": why,
+        "time_apart_ms": {"median": float(np.median(dt)) if dt.size else None, "max": float(dt.max()) if dt.size else None},
+        "masked_pixels": int(masked), "masked_share": masked / max(valid + masked, 1),
+        "roi_masked_share": roi_masked / max(roi_valid + roi_masked, 1) if roi else None,
+        "per_pair": [{"lq_frame": int(f), "dt_ms": round(pm.dt_us / 1000, 3),
+                      "alpha": None if pm.alpha is None else round(pm.alpha, 4), "masked": int(pm.masked)}
+                     for f, pm, _, _ in pairs],
+    }

@@ -41,6 +41,7 @@ from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
 from align.features import FEATURES, detect, inverse_depth_gradient, lift, match, track
+from align.motion import MotionReference, motion_summary
 from align.residuals import depth_residual, outliers, robust_summary
 from align.reference_edges import EdgeRule
 from align.roi import background_depth, foreground_mask
@@ -68,6 +69,9 @@ class AlignOptions:
     more than k MAD-sigmas above the median is dropped. time_model: constant | linear.
     workers: threads for feature work. on_unobservable: error | flag (flag: Delta = declared or
     0, marked unobservable in aligned.json and the report). attach_truth: simulated sessions.
+    motion: carry the reference to the LQ frame's instant from the two HQ frames around it
+    (:mod:`align.motion`) for pairs at least ``motion_min_dt_ms`` apart; closer pairs keep the plain
+    warp, bit for bit.
     """
 
     shift_range_ms: float = DEFAULT_RANGE_US / 1000
@@ -94,6 +98,8 @@ class AlignOptions:
     loop: bool = True
     loop_correct_depth: bool = True
     reference_edges: str = "strict"
+    motion: bool = True
+    motion_min_dt_ms: float = 1.0
 
     def check(self) -> None:
         if self.board is not None:
@@ -117,6 +123,9 @@ class AlignOptions:
         if self.time_model not in ("constant", "linear"):
             raise OptionError(f"time model must be constant or linear, got {self.time_model!r}", option="time_model")
         EdgeRule.named(self.reference_edges)
+        if not self.motion_min_dt_ms >= 0:
+            raise OptionError(f"smallest motion-compensated time apart must be >= 0 ms, got {self.motion_min_dt_ms!r}",
+                              option="motion_min_dt_ms")
         if self.on_unobservable not in ("error", "flag"):
             raise OptionError(f"on_unobservable must be 'error' or 'flag', got {self.on_unobservable!r}",
                               option="on_unobservable")
@@ -507,7 +516,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     """Warp, mask, filter and write one pair's aligned dataset (plus report) to ``root``."""
     sess = setup.session
     rule = EdgeRule.named(opts.reference_edges, edge_rel=opts.edge_rel)
-    warper = DepthWarper(setup.K_hq, setup.K_lq, pf.T_lq_hq, edge_rel=opts.edge_rel, edge_reach=rule.edge_reach)
+    reference = _references(setup, pf, opts, edge_reach=rule.edge_reach)
     table = pair_frames(setup, pf, opts)
     lq_color_T = setup.T_lqdepth_lqcolor.inverse()
     color_registered = setup.T_lqdepth_lqcolor.is_close(Transform.identity(), 1e-9) and setup.K_lq_color == setup.K_lq
@@ -519,7 +528,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     for k in tqdm(timed, desc=f"residuals {setup.name}", unit="pair", disable=not opts.progress, file=sys.stderr,
                   leave=False):
         i, j = int(table.hq_index[k]), int(table.lq_index[k])
-        ref, _ = rule.apply(warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth)))
+        ref, _ = rule.apply(reference(i, float(table.dt_us[k]))[0])
         lq = _lq_depth(sess, setup, pf, j)
         table.residual[k], n = depth_residual(lq, ref)
         if n < 100:
@@ -539,13 +548,15 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     writer = AlignedDatasetWriter(root, meta, force=force, depth_unit_m=1e-4)
     example: dict = {}
     masked = np.zeros(2, np.int64)  # ROI pixels masked by the edge rule, ROI pixels
+    motions: list = []
     try:
         mid = kept[kept.size // 2]
         for k in tqdm(kept, desc=f"write {setup.name}", unit="frame", disable=not opts.progress, file=sys.stderr,
                       leave=False):
             i, j = int(table.hq_index[k]), int(table.lq_index[k])
             fl = int(setup.f_lq[j])
-            ref, edge_mask = rule.apply(warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth)))
+            ref, pm = reference(i, float(table.dt_us[k]))
+            ref, edge_mask = rule.apply(ref)
             lq = _lq_depth(sess, setup, pf, j)
             color = _lq_color(sess, setup, fl, lq, color_registered, lq_color_T)
             roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), background) if background is not None else None
@@ -554,10 +565,12 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
             tr = truth.depth(fl) if truth is not None else None
             writer.add_frame(lq, ref, lq_color=color, roi=roi, truth=tr, lq_frame=fl, hq_frame=int(setup.f_hq[i]),
                              lq_timestamp_us=int(setup.t_lq[j]))
+            motions.append((fl, pm, *_roi_counts(roi, ref, pm.masked_map)))
             if k == mid:
                 example = {"lq": lq, "ref": ref, "color": color, "roi": roi, "lq_frame": fl, "hq_frame": int(setup.f_hq[i])}
         meta["reference_edges"] = {**rule.to_dict(), "masked_roi_pixels": int(masked[0]), "roi_pixels": int(masked[1])}
         writer.write_table("pairs.csv", table.to_csv(setup, shift_all))
+        meta["motion"] = motion_summary(motions, enabled=opts.motion, min_dt_ms=opts.motion_min_dt_ms)
         report = None
         if opts.report:
             from align.report import write_report
@@ -572,6 +585,26 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
         report = Path(root) / "report.md"
     return PairOutput(root=Path(root), table=table, depth_residuals=meta["residuals"]["depth"], report=report,
                       kept=int(kept.size), example=example)
+
+
+def _references(setup: PairSetup, pf: PairFit, opts: AlignOptions, *, edge_reach: float) -> MotionReference:
+    """The pairs' references: the HQ depth warped onto the LQ image and, for pairs whose frames fall
+    apart, carried to the LQ instant (:class:`align.motion.MotionReference`); the edge rule's mask
+    (:mod:`align.reference_edges`) is applied by the caller to the result."""
+    warper = DepthWarper(setup.K_hq, setup.K_lq, pf.T_lq_hq, edge_rel=opts.edge_rel, edge_reach=edge_reach)
+    sess = setup.session
+
+    def warped(i: int) -> np.ndarray:
+        return warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
+
+    return MotionReference(warped, setup.t_hq, enabled=opts.motion, min_dt_us=1000 * opts.motion_min_dt_ms)
+
+
+def _roi_counts(roi, ref: np.ndarray, masked) -> tuple[int | None, int | None]:
+    """Reference pixels with depth, and masked by the motion compensation, inside the ROI."""
+    if roi is None:
+        return None, None
+    return int((roi & np.isfinite(ref)).sum()), 0 if masked is None else int((roi & masked).sum())
 
 
 def _lq_depth(sess, setup: PairSetup, pf: PairFit, j: int) -> np.ndarray:

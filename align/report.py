@@ -153,6 +153,30 @@ def _fmt_T(T) -> str:
     return "\n".join(rows)
 
 
+def _motion_section(m: dict | None) -> list[str]:
+    """The reference at the LQ instant (``aligned.json``'s ``motion``): how many pairs, how far apart, what was masked."""
+    if not m:
+        return []
+    lines = ["## Motion between the paired frames", ""]
+    if not m["enabled"]:
+        return lines + ["Off: each reference is the plain warp of its pair's HQ frame, whatever the time apart.", ""]
+    dt = np.array([abs(p["dt_ms"]) for p in m["per_pair"]], float)
+    q = np.percentile(dt, [0, 50, 90, 100]) if dt.size else [float("nan")] * 4
+    why = ", ".join(f"{n} x {r}" for r, n in m["not_compensated"].items()) or "none"
+    roi = m.get("roi_masked_share")
+    lines += ["| quantity | value |", "|---|---|",
+              f"| pairs carried to the LQ instant | {m['compensated']} of {m['pairs']} (kept as plain warp: {why}) |",
+              f"| time apart, abs(t_LQ - (t_HQ + Delta)) | min {q[0]:.2f}, median {q[1]:.2f}, p90 {q[2]:.2f}, "
+              f"max {q[3]:.2f} ms |",
+              f"| masked (undecided, NaN) | {m['masked_pixels']} pixels, {100 * m['masked_share']:.3f} % of reference pixels"
+              + (f", {100 * roi:.3f} % inside the region of interest |" if roi is not None else " |"),
+              "", "Each reference is the two HQ frames around the LQ frame's instant, warped and combined: depth "
+              "linear in time where both see one surface, the crossing time of the moving edge where they see two "
+              f"(`align/motion.py`); pairs under {m['min_dt_ms']:g} ms apart keep the plain warp. Per pair: "
+              "`aligned.json` -> `motion.per_pair`.", ""]
+    return lines
+
+
 def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=None) -> Path:
     """Write ``report.md``, ``report.html`` and ``figures/`` into ``root``; returns the Markdown path.
     ``truth`` (simulated sessions): the end-to-end error of the loop's section against it."""
@@ -203,6 +227,7 @@ def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=
     if example:
         lines += ["## One frame", "", "![LQ colour and depth, the warped HQ depth, their difference and the region "
                   "of interest](figures/example.png)", ""]
+    lines += _motion_section(meta.get("motion"))
     if getattr(pf, "loop", None) is not None:
         from align.loop.report import loop_section
 

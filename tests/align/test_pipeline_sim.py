@@ -211,3 +211,37 @@ def test_the_fit_never_reads_truth(sim_plus55, aligned55, tmp_path):
     np.testing.assert_array_equal(without.T_lq_hq.matrix, with_truth.T_lq_hq.matrix)
     assert len(without) == len(with_truth) and not without.simulated and with_truth.simulated
     np.testing.assert_array_equal(without.reference(0), with_truth.reference(0))
+
+
+def test_reference_carried_to_the_lq_instant(sim_plus55, aligned55, tmp_path):
+    """aligned.json reports the motion compensation per pair (its time apart is pairs.csv's); written
+    again with it off, pairs under 1 ms apart are bit-identical, and over the compensated pairs the
+    reference is closer to truth than the plain warp (issue 12)."""
+    from align.pipeline import AlignOptions, TruthSource, write_pair_dataset
+
+    res, out = aligned55
+    on = AlignedDataset(out)
+    m = on.meta["motion"]
+    assert m["enabled"] and m["pairs"] == len(on) and 0 <= m["masked_share"] < 0.02
+    rows = [r.split(",") for r in (out / "pairs.csv").read_text().splitlines()[1:]]
+    dt_of = {int(r[1]): int(r[5]) / 1000 for r in rows if r[7] == "1"}
+    assert all(p["dt_ms"] == pytest.approx(dt_of[p["lq_frame"]], abs=1e-3) for p in m["per_pair"])
+    apart = sum(abs(p["dt_ms"]) >= 1.0 for p in m["per_pair"])
+    assert m["compensated"] + m["not_compensated"].get("no HQ neighbour", 0) == apart and m["compensated"] > 0
+    pf = res.views["lq"]
+    write_pair_dataset(tmp_path / "off", pf.setup, pf, AlignOptions(motion=False, report=False, progress=False),
+                       force=False, truth=TruthSource(sim_plus55, "lq"))
+    off = AlignedDataset(tmp_path / "off")
+    assert off.meta["motion"]["enabled"] is False and len(off) == len(on)
+    err = {"on": [], "off": []}
+    for k, p in enumerate(m["per_pair"]):
+        a, b, truth = on.reference(k), off.reference(k), on.truth(k)
+        if p["alpha"] is None:
+            np.testing.assert_array_equal(a, b)
+            continue
+        roi = on.roi(k) & np.isfinite(truth) & np.isfinite(a) & np.isfinite(b)
+        err["on"].append(np.abs(a - truth)[roi])
+        err["off"].append(np.abs(b - truth)[roi])
+    mae = {k: float(np.concatenate(v).mean()) for k, v in err.items()}
+    assert mae["on"] < 0.9 * mae["off"], mae
+    assert "Motion between the paired frames" in (out / "report.md").read_text()

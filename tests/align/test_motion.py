@@ -1,0 +1,126 @@
+"""align.motion: the reference at the LQ instant from the two HQ frames around it (issue 12).
+
+Against independent references: images drawn by formula (an occluder whose edges move at
+constant velocity, a surface whose depth changes linearly), and the simulator's truth on tiny
+sessions whose frames fall 7 ms or 0 ms apart (``--frame-phase-ms``)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from align.errors import OptionError, WarpInputError
+from align.motion import MotionReference, bracket, compensate_motion
+
+H, W = 48, 120
+BG, FG = 3.0, 1.5
+
+
+def _scene(x0: float, width: float) -> np.ndarray:
+    """Background at 3 m, an occluder at 1.5 m covering the pixel centres in ``(x0, x0 + width)``, rows 10-37."""
+    z = np.full((H, W), BG, np.float32)
+    xs = np.arange(W) + 0.5
+    z[10:38, (xs > x0) & (xs < x0 + width)] = FG
+    return z
+
+
+@pytest.mark.parametrize("width, move", [(30.0, 12.0), (10.0, 8.0), (20.0, -16.0)])
+@pytest.mark.parametrize("alpha", [0.2, 0.5, 0.75])
+def test_moving_edges_land_where_they_are_at_the_lq_instant(width, move, alpha):
+    """Occluders wide and narrow, moving either way: every pixel more than 2 px (the 1 px margin,
+    half a pixel, the rays' rounding) from the true edges at the LQ instant is right; the plain
+    warp (the nearer frame) is wrong on the pixels the edges swept since."""
+    A, B = _scene(20.0, width), _scene(20.0 + move, width)
+    truth = _scene(20.0 + alpha * move, width)
+    r = compensate_motion(A, B, alpha)
+    xs = np.arange(W) + 0.5
+    x_edges = np.array([20.0, 20.0 + width]) + alpha * move
+    near_edge = np.zeros((H, W), bool)
+    near_edge[:, np.min(np.abs(xs[:, None] - x_edges[None, :]), axis=1) < 2.0] = True
+    rows = slice(14, 34)  # away from the occluder's top and bottom (the search goes along 16 rays)
+    wrong = ~np.isclose(r.depth, truth)
+    assert not wrong[rows][~near_edge[rows]].any()
+    assert r.n_masked == 0
+    plain = A if alpha <= 0.5 else B
+    swept = ~np.isclose(plain, truth)[rows] & ~near_edge[rows]
+    assert swept.sum() >= 20 * (abs(move) * min(alpha, 1 - alpha) - 4)  # the plain warp was wrong there
+    assert r.taken_other > 0
+
+
+def test_what_neither_frame_saw_stays_wrong():
+    """The limitation, measured: a limb that moves more than its width between the frames passes
+    pixels that both frames saw as background; those stay background (and nothing else is wrong)."""
+    A, B = _scene(20.0, 10.0), _scene(44.0, 10.0)
+    truth = _scene(20.0 + 0.5 * 24.0, 10.0)  # pixels 32-41: background in both frames
+    r = compensate_motion(A, B, 0.5)
+    wrong = np.flatnonzero(~np.isclose(r.depth[24], truth[24]))
+    assert set(wrong) <= set(range(30, 44))
+    assert set(range(33, 41)) <= set(wrong)
+
+
+def test_one_surface_is_linear_in_time():
+    """A surface in both frames: depth A + alpha (B - A), exactly (a wall moving 2 % closer)."""
+    A = np.full((H, W), 2.0, np.float32) + np.linspace(0, 0.2, W, dtype=np.float32)
+    B = A * np.float32(0.98)
+    A[0, 0] = np.nan
+    r = compensate_motion(A, B, 0.3)
+    expect = A + np.float32(0.3) * (B - A)
+    assert np.isnan(r.depth[0, 0]) is False or np.isfinite(B[0, 0])  # own frame a has no depth there
+    np.testing.assert_array_equal(r.depth[1:], expect[1:])
+    assert r.interpolated == H * W - 1 and r.crossed == 0
+
+
+def test_alpha_at_a_frame_gives_that_frame():
+    A, B = _scene(20.0, 30.0), _scene(32.0, 30.0)
+    np.testing.assert_array_equal(compensate_motion(A, B, 0.0).depth, A)
+    np.testing.assert_array_equal(compensate_motion(A, B, 1.0).depth, B)
+
+
+def test_own_frame_holes_stay_holes_and_far_edges_are_masked():
+    """Nothing is invented where the own frame has no depth; an edge farther than max_motion_px is
+    not decided: masked (NaN) and counted."""
+    A, B = _scene(20.0, 30.0), _scene(32.0, 30.0)
+    A[20:24, 60:70] = np.nan
+    r = compensate_motion(A, B, 0.25)
+    assert np.isnan(r.depth[20:24, 60:70]).all()
+    r = compensate_motion(_scene(10.0, 20.0), _scene(70.0, 20.0), 0.5, max_motion_px=8)
+    assert r.n_masked > 0 and np.isnan(r.depth[r.masked]).all()
+    assert r.masked.sum() == (np.isfinite(_scene(10.0, 20.0)) & ~np.isfinite(r.depth)).sum()
+
+
+def test_bad_inputs():
+    A = _scene(20.0, 30.0)
+    with pytest.raises(WarpInputError, match="one shape"):
+        compensate_motion(A, A[:-1], 0.5)
+    for kw in (dict(alpha=1.5), dict(alpha=0.5, own="c"), dict(alpha=0.5, edge_rel=0), dict(alpha=0.5, max_motion_px=0),
+               dict(alpha=0.5, margin_px=-1)):
+        with pytest.raises(OptionError):
+            compensate_motion(A, A, **kw)
+
+
+def test_bracket():
+    t = np.array([0, 33_333, 66_667, 133_333], np.int64)  # frame 3 follows a dropped frame
+    assert bracket(t, 1, 7000) == (1, 2, pytest.approx(7000 / 33_334))
+    assert bracket(t, 1, -7000) == (0, 1, pytest.approx(1 - 7000 / 33_333))
+    assert bracket(t, 0, -7000) is None and bracket(t, 2, 7000) is None  # no neighbour / a gap of two periods
+    assert bracket(t, 1, 0) is None
+
+
+def test_reference_keeps_plain_warp_of_close_pairs_and_warps_each_frame_once():
+    frames = {i: _scene(20.0 + 4 * i, 30.0) for i in range(6)}
+    calls = []
+
+    def warped(i):
+        calls.append(i)
+        return frames[i]
+
+    t = np.arange(6, dtype=np.int64) * 33_333
+    ref = MotionReference(warped, t, min_dt_us=1000)
+    out, pm = ref(2, 500.0)
+    assert out is frames[2] and pm.frames is None and pm.reason == "frames fall together"
+    for i in range(5):
+        out, pm = ref(i, 7000.0)
+        assert pm.frames == (i, i + 1) and pm.alpha == pytest.approx(0.21, abs=0.01)
+    assert sorted(calls) == list(range(6))  # each HQ frame warped once while the pairs come in order
+    off = MotionReference(warped, t, enabled=False)
+    out, pm = off(3, 7000.0)
+    assert out is frames[3] and pm.reason == "off"

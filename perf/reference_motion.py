@@ -5,7 +5,8 @@ Run:  .venv/bin/python perf/reference_motion.py SESSION [SESSION ...] [--frames 
 Each SESSION is a simulated lq-hq session (``depthbench capture simulate ... --frame-phase-ms 7``).
 ``--frames`` LQ frames spread over the session are each paired with the HQ frame nearest to their
 instant, as ``align`` pairs them (dejittered host stamps, truth's time shift and ``T_lq_hq``, so
-only the reference's own error is left). For each session it prints the time apart of the pairs
+only the reference's own error is left), and both references get ``align``'s edge rule
+(``--edges``, :mod:`align.reference_edges`). For each session it prints the time apart of the pairs
 and, for the plain warp and the motion-compensated reference, against the LQ truth depth on the
 region of interest (computed as ``align`` does): MAE, RMSE, share of pixels off by more than
 50 mm, and the share of ROI pixels masked (NaN in the compensated reference where the plain warp
@@ -28,17 +29,18 @@ import numpy as np  # noqa: E402
 
 from align.motion import MotionReference  # noqa: E402
 from align.pipeline import pair_setup  # noqa: E402
+from align.reference_edges import EdgeRule  # noqa: E402
 from align.roi import background_depth, foreground_mask  # noqa: E402
 from align.warp import DepthWarper  # noqa: E402
 from capture.session import open_session  # noqa: E402
 from capture.truth import read_truth  # noqa: E402
 
 
-def _pairs(root: str, n: int):
+def _pairs(root: str, n: int, rule: EdgeRule):
     """``(setup, warper, truth, [(hq index, lq index, dt_us)])`` for ``n`` LQ frames spread over the session."""
     sess, tr = open_session(root), read_truth(root)
     setup = pair_setup(sess, lq="lq", hq="hq")
-    warper = DepthWarper(setup.K_hq, setup.K_lq, tr.T_lq_hq)
+    warper = DepthWarper(setup.K_hq, setup.K_lq, tr.T_lq_hq, edge_reach=rule.edge_reach)
     pairs = []
     for j in np.linspace(2, setup.f_lq.size - 3, n).round().astype(int):
         s = setup.t_lq[j] - tr.time_shift_at_us(setup.t_lq[j])
@@ -47,7 +49,7 @@ def _pairs(root: str, n: int):
     return setup, warper, tr, pairs
 
 
-def _scores(setup, warper, tr, pairs) -> dict:
+def _scores(setup, warper, tr, pairs, rule: EdgeRule) -> dict:
     sess = setup.session
     read = {}
 
@@ -60,7 +62,8 @@ def _scores(setup, warper, tr, pairs) -> dict:
     rows = []
     for i, j, dt in pairs:
         lq = sess.read_depth("lq", int(setup.f_lq[j]))
-        rows.append((plain(i, dt)[0], moved(i, dt)[0], tr.depth("lq", int(setup.f_lq[j])), lq))
+        rows.append((rule.apply(plain(i, dt)[0])[0], rule.apply(moved(i, dt)[0])[0], tr.depth("lq", int(setup.f_lq[j])),
+                     lq))
     bg = background_depth(np.stack([np.where(np.isfinite(p), p, lq) for p, _, _, lq in rows]))
     out = {}
     for name, col in (("plain", 0), ("compensated", 1)):
@@ -99,13 +102,16 @@ def main() -> None:
     ap.add_argument("sessions", nargs="+", help="simulated lq-hq sessions (with truth/)")
     ap.add_argument("--frames", type=int, default=16, help="LQ frames per session (default: %(default)s)")
     ap.add_argument("--speed-frames", type=int, default=40, help="pairs for the throughput (default: %(default)s)")
+    ap.add_argument("--edges", choices=("strict", "midpoint"), default="strict",
+                    help="the reference's edge rule, align.reference_edges (default: %(default)s, as align)")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated MAE / RMSE / >50 mm | masked |")
     print("|---|---|---|---|---|")
     for root in args.sessions:
-        setup, warper, tr, pairs = _pairs(root, args.frames)
-        s = _scores(setup, warper, tr, pairs)
+        rule = EdgeRule.named(args.edges)
+        setup, warper, tr, pairs = _pairs(root, args.frames, rule)
+        s = _scores(setup, warper, tr, pairs, rule)
         dts = np.array([abs(p[2]) for p in pairs]) / 1000
         (pm, pr, pb, _), (cm, cr, cb, masked) = s["plain"], s["compensated"]
         print(f"| {root} | {dts.min():.1f}-{dts.max():.1f} | {pm:.1f} / {pr:.1f} mm / {pb:.2f} % | "

@@ -231,7 +231,7 @@ class Walk:
 _TAPER = {"torso": 0.85, "upper_leg": 0.8, "lower_leg": 0.7, "upper_arm": 0.85, "lower_arm": 0.75}
 
 
-def tapered_limb(r_top: float, r_bottom: float, length: float, *, segments: int = 16,
+def tapered_limb(r_top: float, r_bottom: float, length: float, *, segments: int = 12,
                  cap_rings: int = 3, body_rings: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A closed body segment from z = 0 down to z = -length: a hemisphere of ``r_top`` at the joint,
     a cone to ``r_bottom``, a hemisphere of ``r_bottom`` at the far end (a capsule when the radii

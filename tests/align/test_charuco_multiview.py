@@ -136,13 +136,15 @@ def test_multiview_rig_in_one_frame(multiview):
         if meta["time_model"]["observable"]:  # wide baselines at half resolution: few moving matches
             errors.append(rig["time_shift_us"][v] - p["time_shift_us"])
     # The shift comes from the few features on moving figures (40-150 per view here). Measured on
-    # seeds 5 and 6 x 4 views (issue 13, docs/worklog/2026-11-23/s13-sensor.md): the RMS error
-    # is 1.0 ms with the smooth figures and 1.0 ms with the earlier faceted ones; the smooth bodies
-    # give 29 % fewer moving features (no facet-shading corners to track), so the stated std grows
-    # from 0.48 to 0.57 ms, and the largest single view error was 2.6 ms (smooth, seed 5, view1)
-    # against 1.4 ms (faceted). So per view 3 ms (3 x the RMS error) and over the views 2 ms RMS.
-    assert errors and all(abs(e) < 3000 for e in errors), errors
-    assert np.sqrt(np.mean(np.square(errors))) < 2000, errors
+    # seeds 5 and 6 x 4 views (issue 13, docs/worklog/2026-11-23/s13-sensor.md): with the faceted
+    # figures the RMS error is 1.01 ms (largest 1.4 ms; stated std 0.48 ms), with the smooth ones
+    # 1.37 ms (largest 2.6 ms, view1 of seed 5; stated std 0.56 ms): smooth shading has no facet
+    # corners to track, 23 % fewer moving features, so the shift is less observable. The earlier
+    # 2 ms per view was twice the RMS error even for the faceted figures (about 5 % of views past it).
+    # Here: per view 4 ms (3 x the RMS error), and 2.5 ms RMS over the views (chi-square, 4 views:
+    # about 1 % of seeds past it); a frame off (33 ms) or a wrong peak still fails.
+    assert errors and all(abs(e) < 4000 for e in errors), errors
+    assert np.sqrt(np.mean(np.square(errors))) < 2500, errors
     for v in ("view0", "view1", "view2", "view3"):
         assert (out / v / "aligned.json").is_file() and (out / v / "report.md").is_file()
     assert (out / "report.md").is_file()

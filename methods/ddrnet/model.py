@@ -81,6 +81,8 @@ def fill_holes(depth: torch.Tensor, *, steps: int = 8) -> torch.Tensor:
     m = valid.to(depth.dtype)
     d = torch.where(valid, depth, torch.zeros_like(depth))
     for _ in range(steps):
+        if bool((m > 0).all()):  # nothing left to fill (a frame without holes costs nothing)
+            return d
         num = F.avg_pool2d(d * m, 3, stride=1, padding=1)
         den = F.avg_pool2d(m, 3, stride=1, padding=1)
         grow = (m == 0) & (den > 0)

@@ -131,3 +131,29 @@ def test_joint_loss_has_all_terms_and_released_terms_drops_two():
     w = DDRNetLoss().w
     expect = w.rec * terms["rec"] + w.dot * terms["dot"] + w.lam * (w.sh * terms["sh"] + w.fid * terms["fid"] + w.smo * terms["smo"])
     assert float(total) == pytest.approx(expect, rel=1e-9)
+
+
+def test_fill_holes_matches_a_direct_front_propagation_loop():
+    from methods.ddrnet.model import fill_holes
+
+    rng = np.random.default_rng(3)
+    d = rng.uniform(1.0, 3.0, (9, 11)).astype(np.float32)
+    d[2:7, 3:9] = np.nan          # a 5x6 hole: two steps fill it, the rest is the image mean
+    d[0, 0] = np.nan
+    out = fill_holes(torch.from_numpy(d)[None, None], steps=2)[0, 0].numpy()
+    ref, known = np.nan_to_num(d), np.isfinite(d)
+    for _ in range(2):
+        nxt, grown = ref.copy(), known.copy()
+        for i in range(9):
+            for j in range(11):
+                if known[i, j]:
+                    continue
+                win = [(y, x) for y in range(i - 1, i + 2) for x in range(j - 1, j + 2)
+                       if 0 <= y < 9 and 0 <= x < 11 and known[y, x]]
+                if win:
+                    nxt[i, j], grown[i, j] = np.mean([ref[y, x] for y, x in win]), True
+        ref, known = nxt, grown
+    ref[~known] = ref[known].mean()
+    np.testing.assert_allclose(out, ref, rtol=1e-5)
+    full = torch.from_numpy(rng.uniform(1.0, 3.0, (1, 1, 5, 6)).astype(np.float32))
+    assert torch.equal(fill_holes(full), full)

@@ -9,8 +9,9 @@ only the reference's own error is left), and both references get ``align``'s edg
 (``--edges``, :mod:`align.reference_edges`). For each session it prints the time apart of the pairs
 and, for the plain warp and the motion-compensated reference, against the LQ truth depth on the
 region of interest (computed as ``align`` does): MAE, RMSE, share of pixels off by more than
-50 mm, and the share of ROI pixels masked (NaN in the compensated reference where the plain warp
-has depth). Then the throughput of both, in pairs per second, one thread, frames in memory: the
+50 mm; the share of ROI pixels the motion compensation masked (:attr:`align.motion.Compensated.masked`),
+and the net share of ROI reference pixels lost against the plain warp (the edge rule's mask moves
+with the edges, so this can differ either way). Then the throughput of both, in pairs per second, one thread, frames in memory: the
 plain warp (one warp per pair) and the compensated reference (one new warp per pair, the other
 HQ frame cached, plus the compensation), and their ratio (issue 12: at least 0.5).
 """
@@ -59,23 +60,26 @@ def _scores(setup, warper, tr, pairs, rule: EdgeRule) -> dict:
 
     plain = MotionReference(warped, setup.t_hq, enabled=False)
     moved = MotionReference(warped, setup.t_hq)
-    rows = []
+    rows, maps = [], []
     for i, j, dt in pairs:
         lq = sess.read_depth("lq", int(setup.f_lq[j]))
-        rows.append((rule.apply(plain(i, dt)[0])[0], rule.apply(moved(i, dt)[0])[0], tr.depth("lq", int(setup.f_lq[j])),
-                     lq))
+        ref, pm = moved(i, dt)
+        rows.append((rule.apply(plain(i, dt)[0])[0], rule.apply(ref)[0], tr.depth("lq", int(setup.f_lq[j])), lq))
+        maps.append(pm.masked_map)
     bg = background_depth(np.stack([np.where(np.isfinite(p), p, lq) for p, _, _, lq in rows]))
     out = {}
     for name, col in (("plain", 0), ("compensated", 1)):
-        err, n_roi, n_masked = [], 0, 0
-        for row in rows:
+        err, n_roi, n_masked, n_lost = [], 0, 0, 0
+        for row, masked in zip(rows, maps):
             p, ref, truth, lq = row[0], row[col], row[2], row[3]
             roi = foreground_mask(np.where(np.isfinite(p), p, lq), bg) & np.isfinite(truth)
             n_roi += int((roi & np.isfinite(p)).sum())
-            n_masked += int((roi & np.isfinite(p) & ~np.isfinite(ref)).sum())
+            n_masked += 0 if masked is None else int((roi & masked).sum())
+            n_lost += int((roi & np.isfinite(p)).sum() - (roi & np.isfinite(ref)).sum())
             err.append((ref - truth)[roi & np.isfinite(ref)])
         e = np.abs(np.concatenate(err)) * 1000
-        out[name] = (e.mean(), np.sqrt(np.mean(e ** 2)), 100 * np.mean(e > 50), 100 * n_masked / max(n_roi, 1))
+        out[name] = (e.mean(), np.sqrt(np.mean(e ** 2)), 100 * np.mean(e > 50), 100 * n_masked / max(n_roi, 1),
+                     100 * n_lost / max(n_roi, 1))
     return out
 
 
@@ -106,16 +110,17 @@ def main() -> None:
                     help="the reference's edge rule, align.reference_edges (default: %(default)s, as align)")
     args = ap.parse_args()
     cv2.setNumThreads(1)
-    print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated MAE / RMSE / >50 mm | masked |")
-    print("|---|---|---|---|---|")
+    print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated MAE / RMSE / >50 mm | masked by the "
+          "motion | net reference pixels lost |")
+    print("|---|---|---|---|---|---|")
     for root in args.sessions:
         rule = EdgeRule.named(args.edges)
         setup, warper, tr, pairs = _pairs(root, args.frames, rule)
         s = _scores(setup, warper, tr, pairs, rule)
         dts = np.array([abs(p[2]) for p in pairs]) / 1000
-        (pm, pr, pb, _), (cm, cr, cb, masked) = s["plain"], s["compensated"]
+        (pm, pr, pb, _, _), (cm, cr, cb, masked, lost) = s["plain"], s["compensated"]
         print(f"| {root} | {dts.min():.1f}-{dts.max():.1f} | {pm:.1f} / {pr:.1f} mm / {pb:.2f} % | "
-              f"{cm:.1f} / {cr:.1f} mm / {cb:.2f} % | {masked:.2f} % |", flush=True)
+              f"{cm:.1f} / {cr:.1f} mm / {cb:.2f} % | {masked:.2f} % | {lost:.2f} % |", flush=True)
     if args.speed_frames > 0:
         plain, moved = _throughput(setup, warper, args.speed_frames)
         print(f"\nthroughput ({args.sessions[-1]}, {args.speed_frames} consecutive pairs, one thread): plain warp "

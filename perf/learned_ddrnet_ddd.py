@@ -107,6 +107,9 @@ def main(argv=None) -> int:
     ap.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="inference device (default: cpu)")
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
+    # training first: after the 640x480 inference, the same training steps ran 20-30x slower in this
+    # process (measured: ddrnet 1.8 instead of 57 samples/s), which is not what a training run sees
+    train = training(args.repeats)
     inf = inference(args.repeats, args.device)
     ref = inf["bilateral (reference)"]
     print(f"inference, one 640x480 frame, {args.device}, {args.threads} CPU threads (median of {args.repeats}):")
@@ -114,7 +117,7 @@ def main(argv=None) -> int:
     for k, v in inf.items():
         print(f"{k:24s} {v:10.1f} {v / ref:12.2f}")
     print(f"\ntraining, tiny configs, {args.threads} CPU threads (loss + backward + Adam step, median of {args.repeats}):")
-    for k, v in training(args.repeats).items():
+    for k, v in train.items():
         print(f"{k:24s} {v:10.3g} samples/s")
     return 0
 

@@ -177,8 +177,9 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="output folder (session/, aligned/, results/ inside)")
     p.add_argument("--seconds", type=float, default=3.0, help="seconds of scene time to simulate (default 3)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the simulated scene and clocks (default 0)")
-    p.add_argument("--time-shift-ms", type=float, default=None,
-                   help="clock shift between the sensors; default: drawn within +-60 ms from the seed")
+    p.add_argument("--time-shift-ms", type=float, default=25.0,
+                   help="clock shift between the sensors (default 25 ms; seed 0 would draw 59 ms, on the edge of "
+                        "the alignment's +-60 ms search, which alignment refuses)")
     p.add_argument("--scale", type=float, default=DemoConfig.scale,
                    help=f"image scale of the simulated sensors (default {DemoConfig.scale:g}: 320x240 LQ; 1 = 640x480)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")

@@ -17,6 +17,7 @@ def edge_distances(A, B, ys, xs, mids, ray_dy, ray_dx, ray_d, out_a, out_b):  # 
     opposite ray of the nearest hit. A pixel whose two depths sit on one side of its midpoint gets ``-1``."""
     H, W = A.shape
     n_rays, n_steps = ray_dy.shape
+    live = np.empty(n_rays, np.bool_)
     for k in range(ys.size):
         y, x, mid = ys[k], xs[k], mids[k]
         near_a = A[y, x] < mid
@@ -31,17 +32,21 @@ def edge_distances(A, B, ys, xs, mids, ray_dy, ray_dx, ray_d, out_a, out_b):  # 
         best = np.inf
         best_r = -1
         for r in range(n_rays):
-            for s in range(n_steps):
-                if ray_d[r, s] >= best:
-                    break
+            live[r] = True
+        for s in range(n_steps):  # breadth first: every ray one step further, stop at the first hit
+            for r in range(n_rays):
+                if not live[r]:
+                    continue
                 qy = y + ray_dy[r, s]
                 qx = x + ray_dx[r, s]
                 if qy < 0 or qy >= H or qx < 0 or qx >= W:
-                    break
-                if (A[qy, qx] < mid) if arriving else (B[qy, qx] < mid):
+                    live[r] = False
+                    continue
+                if ((A[qy, qx] < mid) if arriving else (B[qy, qx] < mid)) and ray_d[r, s] < best:
                     best = ray_d[r, s]
                     best_r = r
-                    break
+            if best_r >= 0:
+                break
         if best_r < 0:
             continue
         d_ff = np.inf

@@ -129,25 +129,30 @@ def compensate_motion(ref_a: np.ndarray, ref_b: np.ndarray, alpha: float, *, own
     alpha = float(alpha)
     own = own or ("a" if alpha <= 0.5 else "b")
     plain = A if own == "a" else B
-    out = plain.copy()
     with np.errstate(invalid="ignore"):
         diff = B - A
-        agree = np.abs(diff) <= np.float32(edge_rel) * np.fmin(A, B)  # False where either is NaN
-        band = np.isfinite(diff) & ~agree
-    out[agree] = A[agree] + np.float32(alpha) * diff[agree]
+        lim = np.fmin(A, B)
+        lim *= np.float32(edge_rel)
+        agree = np.abs(diff) <= lim  # False where either is NaN
+        band = np.isfinite(diff)
+        band &= ~agree
+        diff *= np.float32(alpha)
+        diff += A
+    out = np.where(agree, diff, plain)
     seen_a, seen_b = np.isfinite(A), np.isfinite(B)
     own_only = (seen_a & ~seen_b) if own == "a" else (seen_b & ~seen_a)
-    near_band = cv2.dilate(band.view(np.uint8), np.ones((7, 7), np.uint8)).view(bool)  # shadows beside an edge
-    passed, undecided, judged = _crossings(A, B, band, own_only & near_band, alpha, max_motion_px)
+    own_only &= cv2.dilate(band.view(np.uint8), np.ones((7, 7), np.uint8)).view(bool)  # shadows beside an edge
+    ys, xs, passed, bad = _crossings(A, B, band | own_only, alpha, max_motion_px)
     take_b = passed > (margin_px if own == "a" else -margin_px)
     if mask_within_px > 0:
-        undecided |= judged & (np.abs(passed) < mask_within_px)
-    decided = judged & ~undecided
-    out[decided] = np.where(take_b, B, A)[decided]  # NaN where the frame chosen saw nothing there
-    out[undecided] = np.nan
-    other = take_b != (own == "b")
-    return Compensated(depth=out, masked=np.isfinite(plain) & ~np.isfinite(out), interpolated=int(agree.sum()),
-                       crossed=int(decided.sum()), taken_other=int((decided & other).sum()))
+        bad |= np.abs(passed) < mask_within_px
+    ok = ~bad
+    out[ys[ok], xs[ok]] = np.where(take_b, B[ys, xs], A[ys, xs])[ok]  # NaN where the frame chosen saw nothing
+    out[ys[bad], xs[bad]] = np.nan
+    masked = np.isfinite(plain)
+    masked &= np.isnan(out)
+    return Compensated(depth=out, masked=masked, interpolated=int(agree.sum()), crossed=int(ok.sum()),
+                       taken_other=int((ok & (take_b != (own == "b"))).sum()))
 
 
 def _check(A: np.ndarray, B: np.ndarray, **kw) -> None:
@@ -166,16 +171,11 @@ def _check(A: np.ndarray, B: np.ndarray, **kw) -> None:
                           f"{kw['mask_within_px']!r}")
 
 
-def _crossings(A: np.ndarray, B: np.ndarray, band: np.ndarray, one_sided: np.ndarray, alpha: float,
-               max_motion_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rule 2 on the band pixels and the one-sided ones: ``(passed, undecided, judged)``, each
-    ``(H, W)``: how far (px) the edge has passed the pixel at the LQ instant (> 0: ``B``'s surface
-    is there), the pixels that cannot be decided, the pixels judged."""
-    passed = np.zeros(A.shape, np.float32)
-    undecided, judged = np.zeros(A.shape, bool), band | one_sided
+def _crossings(A: np.ndarray, B: np.ndarray, judged: np.ndarray, alpha: float, max_motion_px: float):
+    """Rule 2 on the pixels ``judged`` (``(H, W)`` bool): ``(ys, xs, passed, bad)``, per judged pixel
+    its row and column, how far (px) the edge has passed it at the LQ instant (> 0: ``B``'s surface
+    is there) and whether it cannot be decided."""
     ys, xs = np.nonzero(judged)
-    if ys.size == 0:
-        return passed, undecided, judged
     a_, b_ = A[ys, xs], B[ys, xs]
     # the midpoint between the two depths; one frame without depth: its surface counts as the far one
     with np.errstate(invalid="ignore"):
@@ -183,13 +183,13 @@ def _crossings(A: np.ndarray, B: np.ndarray, band: np.ndarray, one_sided: np.nda
                         np.fmax(a_, b_) * np.float32(1 + ONE_SIDED_REL)).astype(np.float32)
     dy, dx, dist = _offsets(max_motion_px)
     da, db = np.empty(ys.size, np.float32), np.empty(ys.size, np.float32)
-    _kernel()(A, B, ys.astype(np.int64), xs.astype(np.int64), mids, dy, dx, dist, da, db)
+    if ys.size:
+        _kernel()(A, B, ys.astype(np.int64), xs.astype(np.int64), mids, dy, dx, dist, da, db)
     bad = (da < 0) | ~np.isfinite(da) | ~np.isfinite(db)
     a, b = da - np.float32(0.5), db - np.float32(0.5)
     with np.errstate(invalid="ignore"):
-        passed[ys, xs] = np.where(bad, np.float32(0), np.float32(alpha) * (a + b) - a)
-    undecided[ys, xs] = bad
-    return passed, undecided, judged
+        passed = np.where(bad, np.float32(0), np.float32(alpha) * (a + b) - a)
+    return ys, xs, passed, bad
 
 
 _OFFSETS: dict = {}

@@ -114,7 +114,8 @@ def kernel(buf, u, v, w, cxp, cyp, valid, geom, offs):
         base = np.int64(fv + r) * Wp + np.int64(fu + r)
         idet = f32(f32(1) / det)
         if not fast:
-            splat_edge(buf, base, (fru, frv), links, (ux, vx, wx, uy, vy, wy), idet, w[k], offs, Wp, tmp, tmp_i, edge_reach)
+            splat_edge(buf, base, (fru, frv), links, (ux, vx, wx, uy, vy, wy), idet, w[k], offs, Wp, tmp, tmp_i,
+                       edge_reach)
             continue
         sgu = f32(gu * idet)
         sgv = f32(gv * idet)

@@ -91,8 +91,8 @@ def _report(name: str, rows, bg) -> None:
     print(f"rule {name:8s}: MAE {e.mean():5.2f} mm  RMSE {np.sqrt(np.mean(e ** 2)):6.2f} mm  > 50 mm "
           f"{100 * np.mean(e > 50):.3f} %  masked by the rule {100 * n_masked / n_roi:.2f} %  "
           f"no reference {100 * n_none / n_roi:.2f} % of ROI pixels")
-    print("  errors > 50 mm: " + ", ".join(f"{k} {v}" if k == "large" else f"{k} {100 * v / max(where['large'], 1):.0f} %"
-                                           for k, v in where.items()))
+    share = {k: f"{k} {v}" if k == "large" else f"{k} {100 * v / max(where['large'], 1):.0f} %" for k, v in where.items()}
+    print("  errors > 50 mm: " + ", ".join(share.values()))
 
 
 if __name__ == "__main__":

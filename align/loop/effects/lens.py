@@ -6,8 +6,8 @@ camera: the HQ points are projected through the distortion. HQ camera: each HQ k
 is undistorted before it is lifted, and its depth re-sampled where the corrected ray meets the
 registered HQ depth (first order in inverse depth, exact on planes: the keypoint moves by up to
 tens of pixels at k1 = 0.1; on rendered sessions this moved the k1 estimate only from 0.1047 to
-0.1046 against a truth of 0.1, so the remaining bias comes from elsewhere). Signature: feature residual growing with the radius from the
-principal point.
+0.1046 against a truth of 0.1, so the remaining bias comes from elsewhere). Signature: feature
+residual growing with the radius from the principal point.
 """
 from __future__ import annotations
 

@@ -10,16 +10,16 @@ time-of-flight sensor mixes the two surfaces in the pixels along every depth edg
 pixels; the warp's continuity test drops them, see :mod:`align.warp`). Where a silhouette lies
 between two HQ samples the reference cannot know where; whatever the warp guesses there is wrong
 by the whole depth jump (0.3-3 m) for some pixels. Few pixels, but they dominate the reference's
-RMSE: on the demo session (``perf/reference_error.py``) 0.68 % of the ROI is off by more than
-50 mm, RMSE 72 mm beside MAE 6.3 mm. Traced, the large errors are of two kinds:
+RMSE: on a demo-like session (``perf/reference_error.py``) 0.73 % of the ROI is off by more than
+50 mm, RMSE 77 mm beside MAE 6.8 mm. Traced, the large errors are of two kinds:
 
-* **reference farther** (69 %): the far surface showing through the near one. The HQ camera sits
+* **reference farther** (73 %): the far surface showing through the near one. The HQ camera sits
   12.5 cm beside the LQ camera, so on one side of every silhouette the LQ camera sees less of the
   background than the HQ camera does: far samples the HQ camera saw up to ~12 HQ pixels from the
   silhouette land, in the LQ image, just inside the near surface's true outline, and win wherever
   the near surface's samples were lost to mixing. They sit on the far side of a reference depth
   edge, within a pixel or two of it.
-* **reference nearer** (31 %): on the other side (disocclusion) the near surface, extended half an
+* **reference nearer** (27 %): on the other side (disocclusion) the near surface, extended half an
   HQ step past its last sample by the warp's midpoint rule, covers background the HQ camera never
   saw next to the near surface.
 
@@ -29,21 +29,22 @@ pixels on the far side of a reference depth edge, within ``mask_px`` (3) of a su
 ``edge_rel`` nearer, are masked (NaN), which removes most of the first. Every masked pixel is
 counted and reported.
 
-Measured on the demo session (``depthbench demo``'s simulation: people, 3 s, seed 0):
+Measured on a demo-like session (``capture simulate --rig lq-hq --scene people --seconds 3
+--seed 0``, scale 1, the smooth figures):
 
 =====================================  ==============  ==============
 HQ sensor against truth                midpoint        strict
 =====================================  ==============  ==============
-MAE / RMSE, leaderboard (90 frames)    6.02 / 64.9 mm  2.29 / 9.67 mm
-pixels > 50 mm off, truth geometry     0.67 %          0.045 %
-ROI pixels masked by the rule          0               2.6 %
-ROI pixels without reference (all)     6.1 %           11.8 %
+MAE / RMSE, leaderboard (90 frames)    6.32 / 69.6 mm  2.26 / 8.09 mm
+pixels > 50 mm off, truth geometry     0.73 %          0.043 %
+ROI pixels masked by the rule          0               2.9 %
+ROI pixels without reference (all)     6.5 %           12.6 %
 =====================================  ==============  ==============
 
 (``perf/reference_error.py`` for rows 2-4, 6 pairs with truth's geometry; ``bench run`` for row 1.)
-The cost is the masked band (2.6 % of the ROI) plus the gap no sample covers (3.1 %). What is
-left (RMSE still 4x MAE) is the silhouette position inside one HQ step next to holes of the
-reference (the large errors left lie within 2 px of a hole, 82 % with the reference nearer),
+The cost is the masked band (2.9 % of the ROI) plus the gap no sample covers (3.2 %). What is
+left (RMSE still 3.6x MAE) is the silhouette position inside one HQ step next to holes of the
+reference (the large errors left lie within 2 px of a hole, 83 % with the reference nearer),
 which no rule on the HQ depth alone can recover; masking the near side of such edges as well
 bought RMSE 8.9 mm for another 2.8 % of the ROI and is not done. ``"midpoint"`` keeps the plain
 warp: guess, mask nothing.

@@ -24,12 +24,21 @@ The machine is shared while the suite is developed, so the load average is print
 ``--against-scene S``: for each rig, runs of ``--scene`` and of ``S`` alternate (``--repeat``
 pairs, so a load change on a shared machine hits both alike) and the ratio of the two is printed
 (issue 13: the smooth ``people`` figures against the earlier ``people-boxy`` ones).
+
+``--against-tree DIR`` (with ``--against-scene S``): the runs of ``S`` use the code in ``DIR``, a
+checkout of an earlier commit (e.g. ``git archive 40ab985 | tar -x -C DIR``), so that one run
+compares today's simulator on ``--scene`` with the earlier simulator on ``S``. Every run of both
+is then a fresh process (a short warm-up simulation first, so numba's compiled-kernel cache and
+Open3D's start are not counted), its CPU time measured around the run itself.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -63,6 +72,38 @@ def _run_once(out: Path, rig: str, args, *, workers: int | None, reference: bool
             "cpu_per_frame_ms": 1e3 * (_cpu_seconds() - cpu0) / frames}
 
 
+#: One run in a fresh process, with the code on its PYTHONPATH (``--against-tree``); argv[1]: JSON options.
+_ONE_RUN = """
+import json, os, shutil, sys, tempfile
+from capture.sim import simulate
+a = json.loads(sys.argv[1])
+tmp = tempfile.mkdtemp(prefix="simulate-fps-")
+kw = dict(rig=a["rig"], scene=a["scene"], seed=1, force=True, progress=False, workers=a["workers"])
+try:
+    simulate(os.path.join(tmp, "warm"), seconds=0.2, **kw)
+    cpu = lambda t: t.user + t.system + t.children_user + t.children_system
+    c0 = cpu(os.times())
+    r = simulate(os.path.join(tmp, "run"), seconds=a["seconds"], **kw)
+    print(json.dumps({"fps": r.scene_frames_per_s, "wall": r.elapsed_s, "timings_s": r.timings_s,
+                      "cpu_s": cpu(os.times()) - c0}))
+finally:
+    shutil.rmtree(tmp, ignore_errors=True)
+"""
+
+
+def _run_in_tree(tree: Path, rig: str, args, *, scene: str) -> dict:
+    """One run of ``scene`` in a fresh process with the code of ``tree``."""
+    opts = json.dumps({"rig": rig, "scene": scene, "seconds": args.seconds, "workers": args.workers})
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, "-c", _ONE_RUN, opts], env=env, cwd=tree, check=True, capture_output=True,
+                         text=True).stdout
+    r = json.loads(out.strip().splitlines()[-1])
+    frames = args.seconds * 30.0
+    return {"fps": r["fps"], "wall": r["wall"],
+            "per_frame_ms": {s: 1e3 * r["timings_s"].get(s, 0.0) / frames for s in STAGES},
+            "cpu_per_frame_ms": 1e3 * r["cpu_s"] / frames}
+
+
 def _print(label: str, m: dict, ref: dict | None, cores: int) -> None:
     cpu_fps = 1e3 / m["cpu_per_frame_ms"] * cores
     stages = " ".join(f"{s} {m['per_frame_ms'][s]:.0f}" for s in STAGES)
@@ -74,18 +115,23 @@ def _print(label: str, m: dict, ref: dict | None, cores: int) -> None:
 
 def _against(out: Path, rig: str, args, cores: int) -> None:
     """``--scene`` against ``--against-scene`` on ``rig``, runs alternated; best of each, and the ratio."""
-    runs: dict[str, list[dict]] = {args.scene: [], args.against_scene: []}
+    here = Path(__file__).resolve().parents[1]
+    sides = {"this": (args.scene, here), "against": (args.against_scene, args.against_tree)}
+    labels = {"this": f"scene {args.scene}", "against": f"scene {args.against_scene}"
+              + (f" (code in {args.against_tree})" if args.against_tree else "")}
+    runs: dict[str, list[dict]] = {side: [] for side in sides}
     for _ in range(args.repeat):
-        for scene in runs:
-            runs[scene].append(_run_once(out, rig, args, workers=args.workers, scene=scene))
+        for side, (scene, tree) in sides.items():
+            runs[side].append(_run_in_tree(here if tree is None else tree, rig, args, scene=scene)
+                              if args.against_tree else _run_once(out, rig, args, workers=args.workers, scene=scene))
     best = {}
-    for scene, ms in runs.items():
-        best[scene] = max(ms, key=lambda m: m["fps"]) | {"cpu_per_frame_ms": min(m["cpu_per_frame_ms"] for m in ms)}
-        _print(f"{rig}, scene {scene}", best[scene], None, cores)
+    for side, ms in runs.items():
+        best[side] = max(ms, key=lambda m: m["fps"]) | {"cpu_per_frame_ms": min(m["cpu_per_frame_ms"] for m in ms)}
+        _print(f"{rig}, {labels[side]}", best[side], None, cores)
         print("    cpu ms/frame of each run: " + ", ".join(f"{m['cpu_per_frame_ms']:.0f}" for m in ms))
-    a, b = best[args.scene], best[args.against_scene]
-    print(f"{rig}: {args.scene} / {args.against_scene}: x{a['fps'] / b['fps']:.3f} wall rate, "
-          f"x{b['cpu_per_frame_ms'] / a['cpu_per_frame_ms']:.3f} cpu rate (> 1: {args.scene} is faster)")
+    a, b = best["this"], best["against"]
+    print(f"{rig}: {labels['this']} / {labels['against']}: x{a['fps'] / b['fps']:.3f} wall rate, "
+          f"x{b['cpu_per_frame_ms'] / a['cpu_per_frame_ms']:.3f} cpu rate (> 1: the first is faster)")
 
 
 def _reference(out: Path, args) -> dict:
@@ -103,7 +149,13 @@ def main() -> None:
     p.add_argument("--no-reference", action="store_true", help="skip the slow reference run")
     p.add_argument("--against-scene", default=None, metavar="S",
                    help="compare --scene with scene S on each rig, runs alternated (e.g. people-boxy)")
+    p.add_argument("--against-tree", type=Path, default=None, metavar="DIR",
+                   help="run the --against-scene runs with the code in DIR (an earlier checkout)")
     args = p.parse_args()
+    if args.against_tree and not args.against_scene:
+        p.error("--against-tree needs --against-scene")
+    if args.against_tree and not (args.against_tree / "capture" / "sim").is_dir():
+        p.error(f"--against-tree: {args.against_tree} holds no capture/sim package")
     cores = os.cpu_count() or 1
     print(f"cores: {cores}  load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}  "
           f"scene: {args.scene}, {args.seconds:g} s = {args.seconds * 30:.0f} frames of scene time per rig")

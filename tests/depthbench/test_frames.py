@@ -8,6 +8,7 @@ the same pixels to the same bytes (so checksums, dataset checksums and cached re
 from __future__ import annotations
 
 import importlib.util
+import io
 import os
 from pathlib import Path
 
@@ -87,7 +88,7 @@ def test_todays_writers_write_the_old_bytes(tmp_path):
         pytest.skip(f"the fixture's PNG/JPEG bytes come from OpenCV {made_with}, this is {cv2.__version__} "
                     "(the read tests above still check the format)")
 
-    def png16(counts):   # what the simulator's FrameWorker.encode does with depth counts
+    def png16(counts):   # the simulator's settings until 2026-11-23 (it writes PNG_FAST now: same pixels, below)
         return codec.encode_png(counts, params=codec.PNG_RLE)
 
     def color(rgb, encoding):
@@ -117,6 +118,30 @@ def test_encode_decode_round_trip_and_bad_images():
         codec.encode_depth_png(np.zeros((5, 7), np.uint8), unit_m=1e-4, error=SessionFormatError)
 
 
+def test_fast_png_has_the_pixels_of_opencvs_png():
+    """:data:`PNG_FAST` (written by the codec, ISA-L deflate) decodes, with PIL and with OpenCV, to
+    the pixels given and to what OpenCV's :data:`PNG_RLE` file decodes to; depth, colour, mask."""
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[0:37, 0:53]
+    counts = (1500 + 7 * xx + 3 * yy + rng.integers(0, 40, xx.shape)).astype(np.uint16)  # a noisy slanted plane
+    counts[5:9, 10:30] = 0
+    counts[0, 0], counts[-1, -1] = 65535, 1        # both bytes of the big-endian samples exercised
+    rgb = rng.integers(0, 256, (37, 53, 3), dtype=np.uint8)
+    depth = codec.encode_png(counts, params=codec.PNG_FAST)
+    colour, ext = codec.encode_color(rgb, params=codec.PNG_FAST)
+    mask = codec.encode_mask_png(counts > 1600, params=codec.PNG_FAST)
+    assert ext == "png" and codec.image_structure_problem(depth) is None and codec.image_structure_problem(colour) is None
+    assert np.array_equal(np.asarray(Image.open(io.BytesIO(depth))).astype(np.uint16), counts)
+    assert np.array_equal(np.asarray(Image.open(io.BytesIO(colour)).convert("RGB")), rgb)
+    assert np.array_equal(np.asarray(Image.open(io.BytesIO(mask))), np.where(counts > 1600, 255, 0))
+    slow = codec.encode_png(counts, params=codec.PNG_RLE)
+    assert np.array_equal(cv2.imdecode(np.frombuffer(depth, np.uint8), cv2.IMREAD_UNCHANGED),
+                          cv2.imdecode(np.frombuffer(slow, np.uint8), cv2.IMREAD_UNCHANGED))
+    assert np.array_equal(codec.decode_color(colour, where="x.png"), rgb)
+    with pytest.raises(SessionFormatError, match=r"^x\.png: could not encode float32"):
+        codec.encode_png(counts.astype(np.float32), params=codec.PNG_FAST, where="x.png", error=SessionFormatError)
+
+
 def test_size_bound_holds_for_the_largest_png():
     rng = np.random.default_rng(2)
     for shape, bps in (((48, 64, 3), 1), ((48, 64), 2), ((480, 640), 2)):
@@ -124,6 +149,7 @@ def test_size_bound_holds_for_the_largest_png():
         size = len(codec.encode_png(img, params=codec.PNG_STORED))
         bound = codec.encoded_size_bound(shape[1], shape[0], channels=1 if len(shape) == 2 else 3, bytes_per_sample=bps)
         assert size <= bound < size + 2048
+        assert len(codec.encode_png(img, params=codec.PNG_FAST)) <= bound   # noise: ISA-L falls back to stored blocks
 
 
 def test_unreadable_frame_files_are_one_line_errors(tmp_path):

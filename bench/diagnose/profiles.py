@@ -5,7 +5,7 @@
 Each ``REPORT`` is a folder written by ``depthbench bench diagnose CAPTURE --out REPORT --sim-to-real``;
 its ``diagnosis.json`` holds, per sensor, the fitted parameters and the noise model kept after
 the sim-to-real stages (each effect kept only where it brought the simulated twin closer without
-making any statistic worse). The profile is that kept model, with its provenance: the capture,
+making any statistic worse, on the mean over a few twins: ``bench.diagnose.twin.TWIN_SEEDS``). The profile is that kept model, with its provenance: the capture,
 the stages kept and rejected, the fitted values with their errors, and the distances; and
 ``native_focal_px``, the focal length (px) of the pixels the parameters are given in (the stereo
 matcher's), which ``capture.sim.noise.sensor_profile(name, focal_px=...)`` converts from.
@@ -49,6 +49,7 @@ def profile_from_report(name: str, report: Path) -> dict:
         "fitted": {k: d["derived"][k] for k in keep if k in d["derived"]},
         "stages": s2r[sensor]["notes"], "kept_stage": s2r[sensor]["final_stage"],
         "distances": s2r[sensor]["values"],
+        "distance_standard_errors": s2r[sensor].get("standard_errors"), "twin_seeds": s2r[sensor].get("twin_seeds"),
         "written": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}}
 
 

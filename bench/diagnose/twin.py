@@ -11,6 +11,13 @@ brightness, and the simulator's own noise functions
 effect the diagnosis fitted, cumulatively -- so the report shows the distance before and after
 each added effect. :func:`noise_from_diagnosis` is the fitted model (what
 ``capture/sim/sensor_profiles.json`` stores).
+
+The twin is a random draw of the simulated noise, and for a capture of a few frames its spread
+is as large as an effect (D415, 2 frames: the sigma distance after the fitted subpixel reads
+10.1 / 7.5 / 9.5 % with twin seeds 0 / 1 / 2). So every stage is measured with
+:data:`TWIN_SEEDS` twins (seeds ``seed .. seed + n - 1``, the same draws for every stage) and
+:func:`sim_to_real` decides on the mean distance over them; the report gives each mean with its
+standard error, and each decision the paired change with its standard error.
 """
 from __future__ import annotations
 
@@ -20,6 +27,7 @@ import numpy as np
 
 from bench.diagnose.core import LUMINANCE_EDGES, TEXTURE_EDGES, DiagnoseResult, SensorDiagnosis, diagnose_sensor, references
 from bench.diagnose.data import SensorFrames
+from bench.errors import BenchError
 from capture.sim.noise import StereoNoise, TofNoise, stereo_depth, tof_depth
 
 
@@ -183,6 +191,9 @@ def distance(real, sim, *, relative: bool = False) -> float:
     return float(abs(sim - real))
 
 
+#: twins (random draws of the simulated noise) each stage is measured with; the stage rule uses their mean
+TWIN_SEEDS = 3
+
 #: how much a statistic may move before it counts as worse (simulation noise of the twin)
 TOLERANCE = {"sigma_m": 0.01, "fill_rate": 0.005, "rho_lag1": 0.02, "rho_lag4": 0.02, "outlier_fraction": 0.002,
              "bias_m": 0.1, "board_near_far_ratio": 0.003}
@@ -201,14 +212,20 @@ def worse_statistics(before: dict, after: dict) -> list[str]:
             (not np.isfinite(after[k]) or after[k] > 1.05 * before[k] + TOLERANCE.get(k, 0.0))]
 
 
-def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dict:
-    """Distances per statistic for every stage of :func:`stages`.
+def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0, twin_seeds: int | None = None) -> dict:
+    """Distances per statistic for every stage of :func:`stages`, each the mean over ``twin_seeds``
+    twins (None: :data:`TWIN_SEEDS`) with seeds ``seed, seed + 1, ...``.
 
     Each stage's change is applied on top of the last *kept* model; the fitted random error is
     re-scaled once so that the twin reads the measured sigma (plane fits absorb part of correlated
-    noise); a stage that makes any statistic worse (:func:`worse_statistics`) is reported and
-    rejected. ``final`` is the kept model.
+    noise); a stage that makes any statistic worse on the mean over the twins
+    (:func:`worse_statistics`) is reported and rejected. ``final`` is the kept model;
+    ``values[stage]`` the mean distances, ``standard_errors[stage]`` their standard errors over the
+    twins, ``per_seed[stage]`` each twin's.
     """
+    n = TWIN_SEEDS if twin_seeds is None else twin_seeds
+    if not isinstance(n, (int, np.integer)) or n < 1:
+        raise BenchError(f"twin seeds: {n!r} must be a positive integer")
     real = statistics(d)
     dropped = []
     if data.reference_kind == "planes":
@@ -222,7 +239,13 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
     square = (d.derived.get("board_params") or {}).get("square_m")
 
     def measure(noise) -> dict:
-        st = statistics(diagnose_sensor(twin(data, noise, seed=seed, square_m=square), depth_edges=edges))
+        """Mean distances over the twins; ``_runs``: each twin's."""
+        runs = [measure_one(noise, s) for s in range(seed, seed + n)]
+        out = {k: float(np.mean([r[k] for r in runs])) for k in runs[0]}
+        return out | {"_runs": runs}
+
+    def measure_one(noise, twin_seed: int) -> dict:
+        st = statistics(diagnose_sensor(twin(data, noise, seed=twin_seed, square_m=square), depth_edges=edges))
         out = {k: distance(v, st.get(k, np.nan), relative=k == "sigma_m") for k, v in real.items()}
         if "bias_m" in real:  # bias in units of the measured random error (its bins' spread scales with it)
             out["bias_m"] = distance(real["bias_m"] / real["sigma_m"], st["bias_m"] / real["sigma_m"])
@@ -253,29 +276,69 @@ def sim_to_real(data: SensorFrames, d: SensorDiagnosis, *, seed: int = 0) -> dic
         if label.startswith("+ fitted"):
             noise, v = calibrated(noise, v)
         worse = worse_statistics(values[kept_label], v)
+        change = _paired_changes(values[kept_label], v, worse or list(real))
         if worse:
             label = f"{label} (rejected)"
-            notes.append(f"{label}: makes {', '.join(worse)} worse; not kept ({_describe(noise)})")
+            notes.append(f"{label}: makes {', '.join(worse)} worse ({change}); not kept ({_describe(noise)})")
         else:
             kept_label, kept = label, noise
-            notes.append(f"{label}: kept ({_describe(noise)})")
+            notes.append(f"{label}: kept ({_describe(noise)}); {change}")
         values[label] = v
         labels.append(label)
 
-    def fmt(k, v):
-        if not np.isfinite(v):
-            return "-"
-        return f"{100 * v:.1f} %" if k in ("sigma_m", "fill_rate", "outlier_fraction", "board_near_far_ratio") \
-            else f"{v:.2f} sigma" if k == "bias_m" else f"{v:.3f}"
+    return _tables(real, values, labels, seeds=list(range(seed, seed + n))) | {
+        "notes": notes, "final_stage": kept_label, "final": kept.to_dict()}
 
-    def fmt_real(k, v):
-        if isinstance(v, np.ndarray):
-            return ", ".join(f"{1000 * x:.1f}" for x in v if np.isfinite(x)) + " mm"
-        return f"{v:.4f}"
-    values = {s: {k: v for k, v in vals.items() if not k.startswith("_")} for s, vals in values.items()}
-    table = {k: {"real": fmt_real(k, v), "distance": {s: fmt(k, values[s][k]) for s in labels}} for k, v in real.items()}
-    return {"stages": labels, "statistics": table, "values": values, "notes": notes, "final_stage": kept_label,
-            "final": kept.to_dict()}
+
+def _tables(real: dict, values: dict, labels: list[str], *, seeds: list[int]) -> dict:
+    """The result's tables: the mean distance per stage and statistic (``values``), its standard
+    error over the twins, each twin's, and the report's formatted table."""
+    per_seed = {s: [{k: r[k] for k in real} for r in vals["_runs"]] for s, vals in values.items()}
+    errors = {s: {k: _standard_error([r[k] for r in runs]) for k in real} for s, runs in per_seed.items()}
+    means = {s: {k: v for k, v in vals.items() if not k.startswith("_")} for s, vals in values.items()}
+    table = {k: {"real": _fmt_real(v), "distance": {s: _fmt(k, means[s][k], errors[s][k]) for s in labels}}
+             for k, v in real.items()}
+    return {"stages": labels, "statistics": table, "values": means, "standard_errors": errors, "per_seed": per_seed,
+            "twin_seeds": seeds}
+
+
+def _fmt(k: str, v: float, se: float) -> str:
+    """A distance for the report (with ``± standard error`` when there were several twins)."""
+    if not np.isfinite(v):
+        return "-"
+    pm = np.isfinite(se)
+    if k in ("sigma_m", "fill_rate", "outlier_fraction", "board_near_far_ratio"):
+        return f"{100 * v:.1f} ± {100 * se:.1f} %" if pm else f"{100 * v:.1f} %"
+    digits = 2 if k == "bias_m" else 3
+    text = f"{v:.{digits}f}" + (f" ± {se:.{digits}f}" if pm else "")
+    return text + " sigma" if k == "bias_m" else text
+
+
+def _fmt_real(v) -> str:
+    if isinstance(v, np.ndarray):
+        return ", ".join(f"{1000 * x:.1f}" for x in v if np.isfinite(x)) + " mm"
+    return f"{v:.4f}"
+
+
+def _standard_error(x: list[float]) -> float:
+    """Standard error of the mean of ``x`` (NaN for fewer than two finite values)."""
+    x = np.asarray(x, dtype=float)
+    return float(np.std(x, ddof=1) / np.sqrt(len(x))) if len(x) > 1 and np.isfinite(x).all() else float("nan")
+
+
+def _paired_changes(before: dict, after: dict, keys: list[str]) -> str:
+    """``key +change ± standard error`` over the twins (the same seeds before and after: paired)
+    against the allowance of :func:`worse_statistics`, for ``keys``."""
+    parts = []
+    for k in keys:
+        if k not in before or not np.isfinite(before[k]):
+            continue
+        delta = [a[k] - b[k] for a, b in zip(after["_runs"], before["_runs"])]
+        allow = 0.05 * before[k] + TOLERANCE.get(k, 0.0)
+        se = _standard_error(delta)
+        pm = f" ± {se:.2g}" if np.isfinite(se) else ""
+        parts.append(f"{k} {np.mean(delta):+.4g}{pm} (allowed {allow:.3g})")
+    return "change of the mean over the twins: " + ", ".join(parts)
 
 
 def _describe(noise) -> str:
@@ -285,7 +348,8 @@ def _describe(noise) -> str:
     return ", ".join(f"{k} = {d[k]:.4g}" for k in keys if k in d)
 
 
-def sim_to_real_tables(frames: list[SensorFrames], result: DiagnoseResult, *, seed: int = 0) -> dict:
+def sim_to_real_tables(frames: list[SensorFrames], result: DiagnoseResult, *, seed: int = 0,
+                       twin_seeds: int | None = None) -> dict:
     """:func:`sim_to_real` for every sensor of a diagnosis."""
     out = {}
     for f in frames:
@@ -293,5 +357,5 @@ def sim_to_real_tables(frames: list[SensorFrames], result: DiagnoseResult, *, se
             out[f.sensor] = {"stages": [], "statistics": {}, "values": {}, "final_stage": None, "final": None,
                              "notes": ["no stereo geometry (focal length x baseline) known: no simulated twin"]}
             continue
-        out[f.sensor] = sim_to_real(f, result.sensors[f.sensor], seed=seed)
+        out[f.sensor] = sim_to_real(f, result.sensors[f.sensor], seed=seed, twin_seeds=twin_seeds)
     return out

@@ -80,6 +80,17 @@ def test_sim_to_real_adds_effects_without_making_a_statistic_worse():
     assert last["sigma_m"] < 0.5 * first["sigma_m"]
     assert last["outlier_fraction"] < first["outlier_fraction"]
     assert abs(s2r["final"]["subpixel_px"] / 0.14 - 1) < 0.15
+    # each stage is the mean over the twins (seeds 0, 1, 2), with its standard error; a single twin
+    # with seed 1 measures the default stage (the same model in both runs) as the middle twin did
+    assert s2r["twin_seeds"] == [0, 1, 2]
+    runs = s2r["per_seed"]["default"]
+    one = sim_to_real(data, d, seed=1, twin_seeds=1)
+    for k, v in one["values"]["default"].items():
+        assert runs[1][k] == pytest.approx(v, rel=1e-12)
+        assert first[k] == pytest.approx(np.mean([r[k] for r in runs]), rel=1e-12)
+        assert s2r["standard_errors"]["default"][k] == pytest.approx(np.std([r[k] for r in runs], ddof=1) / np.sqrt(3))
+    assert "±" in s2r["statistics"]["sigma_m"]["distance"]["default"]
+    assert one["twin_seeds"] == [1] and "±" not in one["statistics"]["sigma_m"]["distance"]["default"]
 
 
 @pytest.fixture(scope="module")

@@ -128,31 +128,16 @@ def compensate_motion(ref_a: np.ndarray, ref_b: np.ndarray, alpha: float, *, own
            mask_within_px=mask_within_px)
     alpha = float(alpha)
     own = own or ("a" if alpha <= 0.5 else "b")
-    plain = A if own == "a" else B
-    with np.errstate(invalid="ignore"):
-        diff = B - A
-        lim = np.fmin(A, B)
-        lim *= np.float32(edge_rel)
-        agree = np.abs(diff) <= lim  # False where either is NaN
-        band = np.isfinite(diff)
-        band &= ~agree
-        diff *= np.float32(alpha)
-        diff += A
-    out = np.where(agree, diff, plain)
-    seen_a, seen_b = np.isfinite(A), np.isfinite(B)
-    own_only = (seen_a & ~seen_b) if own == "a" else (seen_b & ~seen_a)
-    own_only &= cv2.dilate(band.view(np.uint8), np.ones((7, 7), np.uint8)).view(bool)  # shadows beside an edge
-    ys, xs, passed, bad = _crossings(A, B, band | own_only, alpha, max_motion_px)
-    take_b = passed > (margin_px if own == "a" else -margin_px)
-    if mask_within_px > 0:
-        bad |= np.abs(passed) < mask_within_px
-    ok = ~bad
-    out[ys[ok], xs[ok]] = np.where(take_b, B[ys, xs], A[ys, xs])[ok]  # NaN where the frame chosen saw nothing
-    out[ys[bad], xs[bad]] = np.nan
-    masked = np.isfinite(plain)
-    masked &= np.isnan(out)
-    return Compensated(depth=out, masked=masked, interpolated=int(agree.sum()), crossed=int(ok.sum()),
-                       taken_other=int((ok & (take_b != (own == "b"))).sum()))
+    rule_one, rule_two, _ = _kernels()
+    out, band = np.empty_like(A), np.empty(A.shape, np.uint8)
+    interpolated = rule_one(A, B, np.float32(alpha), np.float32(edge_rel), own == "a", out, band)
+    near_band = cv2.dilate(band, np.ones((7, 7), np.uint8))  # one-sided pixels: shadows beside an edge
+    masked = np.zeros(A.shape, bool)
+    crossed, taken = rule_two(A, B, band, near_band, np.float32(alpha), own == "a", np.float32(1 + ONE_SIDED_REL),
+                              np.float32(margin_px), np.float32(mask_within_px), _rays(max_motion_px, A.shape[1]),
+                              out, masked)
+    return Compensated(depth=out, masked=masked, interpolated=int(interpolated), crossed=int(crossed),
+                       taken_other=int(taken))
 
 
 def _check(A: np.ndarray, B: np.ndarray, **kw) -> None:
@@ -171,27 +156,6 @@ def _check(A: np.ndarray, B: np.ndarray, **kw) -> None:
                           f"{kw['mask_within_px']!r}")
 
 
-def _crossings(A: np.ndarray, B: np.ndarray, judged: np.ndarray, alpha: float, max_motion_px: float):
-    """Rule 2 on the pixels ``judged`` (``(H, W)`` bool): ``(ys, xs, passed, bad)``, per judged pixel
-    its row and column, how far (px) the edge has passed it at the LQ instant (> 0: ``B``'s surface
-    is there) and whether it cannot be decided."""
-    ys, xs = np.nonzero(judged)
-    a_, b_ = A[ys, xs], B[ys, xs]
-    # the midpoint between the two depths; one frame without depth: its surface counts as the far one
-    with np.errstate(invalid="ignore"):
-        mids = np.where(np.isfinite(a_) & np.isfinite(b_), np.sqrt(a_ * b_),
-                        np.fmax(a_, b_) * np.float32(1 + ONE_SIDED_REL)).astype(np.float32)
-    dy, dx, dist = _offsets(max_motion_px)
-    da, db = np.empty(ys.size, np.float32), np.empty(ys.size, np.float32)
-    if ys.size:
-        _kernel()(A, B, ys.astype(np.int64), xs.astype(np.int64), mids, dy, dx, dist, da, db)
-    bad = (da < 0) | ~np.isfinite(da) | ~np.isfinite(db)
-    a, b = da - np.float32(0.5), db - np.float32(0.5)
-    with np.errstate(invalid="ignore"):
-        passed = np.where(bad, np.float32(0), np.float32(alpha) * (a + b) - a)
-    return ys, xs, passed, bad
-
-
 _OFFSETS: dict = {}
 _KERNEL: list = []
 
@@ -208,12 +172,22 @@ def _offsets(radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return _OFFSETS[radius]
 
 
-def _kernel():
+def _kernels():
+    """``(rule_one, rule_two, step_tables)`` of :mod:`align._motion_kernel` (imported on first use)."""
     if not _KERNEL:
-        from align._motion_kernel import edge_distances
+        from align._motion_kernel import rule_one, rule_two, step_tables
 
-        _KERNEL.append(edge_distances)
-    return _KERNEL[0]
+        _KERNEL.extend((rule_one, rule_two, step_tables))
+    return _KERNEL
+
+
+def _rays(radius: float, width: int) -> tuple:
+    """The search tables for images ``width`` wide (:func:`align._motion_kernel.step_tables`, cached)."""
+    key = (radius, int(width))
+    if key not in _OFFSETS:
+        _OFFSETS[key] = _kernels()[2](*_offsets(radius), np.int64(width))
+    return _OFFSETS[key]
+
 
 def bracket(t_hq_us: np.ndarray, i: int, dt_us: float, *, max_gap: float = 1.6) -> tuple[int, int, float] | None:
     """The HQ frames ``a < b`` around the instant ``t_hq_us[i] + dt_us`` and ``alpha`` from ``a`` to ``b``.

@@ -41,7 +41,8 @@ from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
 from align.features import FEATURES, detect, inverse_depth_gradient, lift, match, track
-from align.motion import MotionReference, motion_summary
+from align.motion import motion_summary
+from align.pair_reference import PairReferences, ReferenceOptions
 from align.residuals import depth_residual, outliers, robust_summary
 from align.reference_edges import EdgeRule
 from align.roi import background_depth, foreground_mask
@@ -515,8 +516,8 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
                        truth: TruthSource | None, meta_extra: dict | None = None) -> PairOutput:
     """Warp, mask, filter and write one pair's aligned dataset (plus report) to ``root``."""
     sess = setup.session
-    rule = EdgeRule.named(opts.reference_edges, edge_rel=opts.edge_rel)
-    reference = _references(setup, pf, opts, edge_reach=rule.edge_reach)
+    reference = pair_references(setup, T_lq_hq=pf.T_lq_hq, options=reference_options(opts))
+    rule = reference.rule
     table = pair_frames(setup, pf, opts)
     lq_color_T = setup.T_lqdepth_lqcolor.inverse()
     color_registered = setup.T_lqdepth_lqcolor.is_close(Transform.identity(), 1e-9) and setup.K_lq_color == setup.K_lq
@@ -528,7 +529,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     for k in tqdm(timed, desc=f"residuals {setup.name}", unit="pair", disable=not opts.progress, file=sys.stderr,
                   leave=False):
         i, j = int(table.hq_index[k]), int(table.lq_index[k])
-        ref, _ = rule.apply(reference(i, float(table.dt_us[k]))[0])
+        ref = reference(i, float(table.dt_us[k])).depth
         lq = _lq_depth(sess, setup, pf, j)
         table.residual[k], n = depth_residual(lq, ref)
         if n < 100:
@@ -555,8 +556,8 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
                       leave=False):
             i, j = int(table.hq_index[k]), int(table.lq_index[k])
             fl = int(setup.f_lq[j])
-            ref, pm = reference(i, float(table.dt_us[k]))
-            ref, edge_mask = rule.apply(ref)
+            r = reference(i, float(table.dt_us[k]))
+            ref, pm, edge_mask = r.depth, r.motion, r.edge_mask
             lq = _lq_depth(sess, setup, pf, j)
             color = _lq_color(sess, setup, fl, lq, color_registered, lq_color_T)
             roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), background) if background is not None else None
@@ -587,17 +588,24 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
                       kept=int(kept.size), example=example)
 
 
-def _references(setup: PairSetup, pf: PairFit, opts: AlignOptions, *, edge_reach: float) -> MotionReference:
-    """The pairs' references: the HQ depth warped onto the LQ image and, for pairs whose frames fall
-    apart, carried to the LQ instant (:class:`align.motion.MotionReference`); the edge rule's mask
-    (:mod:`align.reference_edges`) is applied by the caller to the result."""
-    warper = DepthWarper(setup.K_hq, setup.K_lq, pf.T_lq_hq, edge_rel=opts.edge_rel, edge_reach=edge_reach)
+def reference_options(opts: AlignOptions) -> ReferenceOptions:
+    """The options of :mod:`align.pair_reference` that ``opts`` sets."""
+    return ReferenceOptions(reference_edges=opts.reference_edges, edge_rel=opts.edge_rel, motion=opts.motion,
+                            motion_min_dt_ms=opts.motion_min_dt_ms)
+
+
+def pair_references(setup: PairSetup, *, T_lq_hq: Transform, K_lq=None,
+                    options: ReferenceOptions | None = None) -> PairReferences:
+    """The pairs' references as the aligned dataset has them (:class:`align.pair_reference.PairReferences`:
+    the warp, carried to the LQ instant, the edge rule), HQ frames read from the session. ``K_lq``:
+    ``None``: ``setup.K_lq``."""
     sess = setup.session
 
-    def warped(i: int) -> np.ndarray:
-        return warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
+    def read_hq(i: int) -> np.ndarray:
+        return sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth)
 
-    return MotionReference(warped, setup.t_hq, enabled=opts.motion, min_dt_us=1000 * opts.motion_min_dt_ms)
+    return PairReferences(read_hq, K_hq=setup.K_hq, K_lq=setup.K_lq if K_lq is None else K_lq, T_lq_hq=T_lq_hq,
+                          t_hq_us=setup.t_hq, options=options)
 
 
 def _roi_counts(roi, ref: np.ndarray, masked) -> tuple[int | None, int | None]:

@@ -15,6 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from align.pair_reference import ReferenceOptions  # noqa: E402
 from align.time_shift import ShiftLoss  # noqa: E402
 from depthbench.markdown_html import html_page, markdown_to_html  # noqa: E402
 
@@ -231,7 +232,7 @@ def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=
     if getattr(pf, "loop", None) is not None:
         from align.loop.report import loop_section
 
-        lines += loop_section(root, setup, pf, truth)
+        lines += loop_section(root, setup, pf, truth, reference=ReferenceOptions.from_meta(meta))
     md = "\n".join(lines)
     path = root / "report.md"
     path.write_text(md)

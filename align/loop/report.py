@@ -8,7 +8,8 @@
 * what stays unexplained (a signature still structured after the final model), with its plot;
 * the held-out alignment residual before/after, always; and where the session has truth (read
   here, by the report, after the fit), the warped HQ reference against the truth before/after
-  the loop, and the raw LQ depth against the truth before/after a depth correction.
+  the loop (built as the aligned dataset's, :mod:`align.pair_reference`), and the raw LQ depth
+  against the truth before/after a depth correction.
 """
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from align.association import nearest_mapping  # noqa: E402
-from align.warp import DepthWarper  # noqa: E402
+from align.pair_reference import ReferenceOptions  # noqa: E402
+from align.pipeline import pair_references  # noqa: E402
 
 
 def _plot_signature(ax, sig, title: str, color: str = "C0") -> None:
@@ -66,9 +68,15 @@ def _sig(lst, name):
     return next((s for s in lst if s.name == name), None)
 
 
-def end_to_end(setup, pf, loop, truth, *, pairs: int = 12) -> dict | None:
-    """Warped HQ depth against the LQ truth (MAE, mm) with the base geometry and with the loop's, and
-    raw LQ depth against truth before/after the loop's depth correction, over ``pairs`` pairs."""
+def end_to_end(setup, pf, loop, truth, *, pairs: int = 12, reference: ReferenceOptions | None = None) -> dict | None:
+    """Warped HQ depth against the LQ truth (MAE, RMSE, mm) with the base geometry and with the loop's, and
+    raw LQ depth against truth before/after the loop's depth correction, over ``pairs`` pairs.
+
+    The references are built as ``align`` builds the aligned dataset's (:mod:`align.pair_reference`:
+    the warp, carried to the LQ instant, the edge rule; ``reference``: the options the dataset was
+    written with, ``None``: ``align``'s defaults), so "after" is the error of the references written.
+    Per geometry: ``reference_mae_mm``, ``reference_rmse_mm``, ``lq_mae_mm``, ``pairs`` and ``frames``
+    (``(hq_frame, lq_frame)`` of each pair used) with ``frame_mae_mm``, the reference's MAE on each."""
     if truth is None:
         return None
     b = loop.base
@@ -77,17 +85,18 @@ def end_to_end(setup, pf, loop, truth, *, pairs: int = 12) -> dict | None:
     out = {}
     sess = setup.session
     for key, (T, K, shift_at) in geoms.items():
-        lq_of = nearest_mapping(setup.t_hq, setup.t_lq, shift_at(setup.t_hq.astype(np.float64)))
-        dt = np.abs(setup.t_lq[lq_of] - (setup.t_hq + shift_at(setup.t_hq.astype(np.float64))))
-        ok = np.flatnonzero(dt < setup.lq_period_us / 2)
+        shift = shift_at(setup.t_hq.astype(np.float64))
+        lq_of = nearest_mapping(setup.t_hq, setup.t_lq, shift)
+        dt = setup.t_lq[lq_of] - (setup.t_hq + shift)  # the LQ instant after its HQ frame's, on the HQ clock
+        ok = np.flatnonzero(np.abs(dt) < setup.lq_period_us / 2)
         ok = ok[~np.isin(lq_of[ok], loop.lq_duplicates)] if key == "after" else ok
         pick = ok[np.unique(np.linspace(0, ok.size - 1, min(pairs, ok.size)).round().astype(int))]
-        warper = DepthWarper(setup.K_hq, K, T)
+        refs = pair_references(setup, T_lq_hq=T, K_lq=K, options=reference)
         errs, raw = [], []
         for i in pick:
             fl = int(setup.f_lq[lq_of[i]])
             tr = truth.depth(fl)
-            ref = warper(sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth))
+            ref = refs(int(i), float(dt[i])).depth
             lq = sess.read_depth(setup.lq, fl, stream=setup.lq_depth)
             if key == "after":
                 lq = loop.correct_lq_depth(lq)
@@ -98,12 +107,15 @@ def end_to_end(setup, pf, loop, truth, *, pairs: int = 12) -> dict | None:
         e, r = np.concatenate(errs) if errs else np.zeros(0), np.concatenate(raw) if raw else np.zeros(0)
         out[key] = {"reference_mae_mm": 1e3 * float(np.mean(e)) if e.size else float("nan"),
                     "reference_rmse_mm": 1e3 * float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan"),
-                    "lq_mae_mm": 1e3 * float(np.mean(r)) if r.size else float("nan"), "pairs": int(pick.size)}
+                    "lq_mae_mm": 1e3 * float(np.mean(r)) if r.size else float("nan"), "pairs": int(pick.size),
+                    "frames": [(int(setup.f_hq[i]), int(setup.f_lq[lq_of[i]])) for i in pick],
+                    "frame_mae_mm": [1e3 * float(np.mean(x)) if x.size else float("nan") for x in errs]}
     return out
 
 
-def loop_section(root: Path, setup, pf, truth=None) -> list[str]:
-    """Markdown lines (and figures under ``root/figures``) for the loop of ``pf.loop``."""
+def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptions | None = None) -> list[str]:
+    """Markdown lines (and figures under ``root/figures``) for the loop of ``pf.loop``; ``reference``: how the
+    dataset's references were built (:func:`end_to_end`)."""
     loop = pf.loop
     fl, dl = loop.features, loop.depth
     figs = Path(root) / "figures"
@@ -144,9 +156,12 @@ def loop_section(root: Path, setup, pf, truth=None) -> list[str]:
         lines.append(f"| LQ - warped HQ depth, median abs (%) | {100 * dl.heldout_before['median_abs']:.3f} | "
                      f"{100 * dl.heldout_after['median_abs']:.3f} |")
     lines.append("")
-    e2e = end_to_end(setup, pf, loop, truth)
+    e2e = end_to_end(setup, pf, loop, truth, reference=reference)
     if e2e:
-        lines += ["End to end, against the simulator's truth (read by this report only, after the fit):", "",
+        ro = reference or ReferenceOptions()
+        how = f"edge rule `{ro.reference_edges}`" + (", carried to the LQ instant" if ro.motion else "")
+        lines += [f"End to end, against the simulator's truth (read by this report only, after the fit; the references "
+                  f"built as the aligned dataset's: {how}):", "",
                   "| | before the loop | after |", "|---|--:|--:|",
                   f"| warped HQ reference vs truth, MAE (mm) | {e2e['before']['reference_mae_mm']:.2f} | "
                   f"{e2e['after']['reference_mae_mm']:.2f} |",

@@ -51,3 +51,39 @@ def test_report_shows_the_loop(lens_dups):
     assert (out / "figures" / "loop_lens_lq_k1.png").is_file()
     assert "warped HQ reference vs truth, MAE" in md  # simulated: end-to-end error before/after
     assert meta["loop"]["heldout_features_px"]["after"]["median_abs"] < meta["loop"]["heldout_features_px"]["before"]["median_abs"]
+
+
+def test_end_to_end_error_is_that_of_the_references_written(lens_dups):
+    """One way to warp: the loop's end-to-end error against truth, computed for the dataset's own
+    geometry and options, equals the error of the references the aligned dataset holds for the same
+    pairs (up to its 0.1 mm storage step) -- the edge rule and the motion step included."""
+    from types import SimpleNamespace
+
+    from align.dataset import AlignedDataset
+    from align.loop.report import end_to_end
+    from align.pair_reference import ReferenceOptions
+    from align.pipeline import TruthSource, pair_setup
+    from capture.camera import Intrinsics
+    from capture.session import open_session
+
+    root, out, res, meta = lens_dups
+    ds = AlignedDataset(out)
+    setup = pair_setup(open_session(root), lq="lq", hq="hq")
+    K = Intrinsics.from_dict(meta["lq_intrinsics"])
+    geometry = {"T_lq_hq": res.T_lq_hq, "K_lq": K, "shift_us": float(res.shift.time_shift_us), "drift_ppm": 0.0,
+                "t0_us": 0.0}
+    loop = SimpleNamespace(base=geometry, lq_duplicates=[], correct_lq_depth=lambda d: d,
+                           **{k: v for k, v in geometry.items() if k not in ("t0_us",)})
+    opts = ReferenceOptions.from_meta(meta)
+    assert opts.reference_edges == "strict"
+    e2e = end_to_end(setup, None, loop, TruthSource(root, "lq"), pairs=10, reference=opts)["after"]
+    rows = {(int(r["hq_frame"]), int(r["lq_frame"])): int(r["index"]) for r in ds.rows}
+    matched = [(rows[f], mae) for f, mae in zip(map(tuple, e2e["frames"]), e2e["frame_mae_mm"]) if f in rows]
+    assert len(matched) >= 0.8 * len(e2e["frames"])  # pairs the dataset dropped or paired otherwise: few
+    for index, mae in matched:
+        ref, tr = ds.reference(index), ds.truth(index)
+        m = np.isfinite(ref) & np.isfinite(tr)
+        assert 1e3 * np.mean(np.abs(ref[m] - tr[m])) == pytest.approx(mae, abs=0.1)
+    midpoint = end_to_end(setup, None, loop, TruthSource(root, "lq"), pairs=10,
+                          reference=ReferenceOptions(reference_edges="midpoint"))["after"]
+    assert midpoint["reference_rmse_mm"] > 1.5 * e2e["reference_rmse_mm"]  # the two ways differ: this one is align's

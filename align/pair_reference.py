@@ -1,0 +1,82 @@
+"""The reference of a frame pair as ``align`` builds it: the one way to warp (issue 12).
+
+An HQ depth frame becomes the LQ frame's reference in three steps, always in this order:
+
+1. the warp onto the LQ image (:class:`align.warp.DepthWarper`), with the edge rule's reach past a
+   surface's last sample (:mod:`align.reference_edges`: 0 for the ``strict`` rule, the default);
+2. when the LQ frame is exposed apart from its HQ frame, the reference carried to the LQ instant
+   from the two HQ frames around it (:mod:`align.motion`);
+3. the edge rule's mask (far side of reference edges) on the result.
+
+The aligned dataset's references (:func:`align.pipeline.write_pair_dataset`) and every error
+reported against truth for them (the loop's end-to-end table, :mod:`align.loop.report`) come from
+:class:`PairReferences`, so the numbers a report prints are those of the references it writes.
+No I/O: HQ frames come through a callable.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from align.motion import MotionReference, PairMotion
+from align.reference_edges import EdgeRule
+from align.warp import DepthWarper
+
+
+@dataclass(frozen=True)
+class ReferenceOptions:
+    """How references are built: ``reference_edges`` (edge rule by name, :mod:`align.reference_edges`),
+    ``edge_rel`` (relative depth step of an edge, for the warp and the rule), ``motion`` (carry to the
+    LQ instant), ``motion_min_dt_ms`` (pairs closer in time keep the plain warp)."""
+
+    reference_edges: str = "strict"
+    edge_rel: float = 0.03
+    motion: bool = True
+    motion_min_dt_ms: float = 1.0
+
+    @classmethod
+    def from_meta(cls, meta: dict) -> "ReferenceOptions":
+        """The options an aligned dataset was written with, from its ``aligned.json`` (defaults where absent)."""
+        edges, motion = meta.get("reference_edges") or {}, meta.get("motion") or {}
+        d = cls()
+        return cls(reference_edges=edges.get("rule", d.reference_edges), edge_rel=float(edges.get("edge_rel", d.edge_rel)),
+                   motion=bool(motion.get("enabled", d.motion)),
+                   motion_min_dt_ms=float(motion.get("min_dt_ms", d.motion_min_dt_ms)))
+
+
+@dataclass
+class PairReference:
+    """One pair's reference: ``depth`` ``(H, W)`` float32 metres on the LQ image (NaN = none), how the
+    motion step made it (``motion``), and ``edge_mask`` ``(H, W)`` bool, the pixels the edge rule masked."""
+
+    depth: np.ndarray
+    motion: PairMotion
+    edge_mask: np.ndarray
+
+
+class PairReferences:
+    """References of the pairs of one session (the module docstring's three steps).
+
+    Args:
+        read_hq: ``read_hq(i)`` -> HQ depth frame ``i``, ``(h, w)`` float32 metres, NaN = none.
+        K_hq, K_lq, T_lq_hq: the geometry (:class:`align.warp.DepthWarper`'s).
+        t_hq_us: ``(N,)`` HQ frame stamps, µs (the motion step's brackets).
+        options: :class:`ReferenceOptions`; ``None``: ``align``'s defaults.
+    """
+
+    def __init__(self, read_hq: Callable[[int], np.ndarray], *, K_hq, K_lq, T_lq_hq, t_hq_us: np.ndarray,
+                 options: ReferenceOptions | None = None) -> None:
+        self.options = options or ReferenceOptions()
+        self.rule = EdgeRule.named(self.options.reference_edges, edge_rel=self.options.edge_rel)
+        warper = DepthWarper(K_hq, K_lq, T_lq_hq, edge_rel=self.options.edge_rel, edge_reach=self.rule.edge_reach)
+        self.motion = MotionReference(lambda i: warper(read_hq(i)), t_hq_us, enabled=self.options.motion,
+                                      min_dt_us=1000 * self.options.motion_min_dt_ms)
+
+    def __call__(self, i: int, dt_us: float) -> PairReference:
+        """The reference of HQ frame ``i`` for the LQ frame exposed ``dt_us`` after it (µs, on the HQ clock:
+        ``t_lq - (t_hq + shift)``)."""
+        ref, pm = self.motion(int(i), float(dt_us))
+        depth, mask = self.rule.apply(ref)
+        return PairReference(depth=depth, motion=pm, edge_mask=mask)

@@ -14,6 +14,11 @@ One task per sequence (simulate, then align) runs wherever the :class:`bench.exe
 says: this process, local processes, or a Dask cluster (paths must be shared), so a lab can make an
 SSDD-size corpus (51 sequences of 30 s) on a cluster. The folder is built aside and published when
 every sequence is done: a failure leaves nothing.
+
+``rig`` ``multiview4`` / ``multiview4-hq`` makes DDD's self-supervision corpus instead: four-view sessions
+aligned by the suite's multi-view alignment (``aligned/<name>/rig.json`` plus ``view0`` ... ``view3``),
+one manifest entry per view; a static-looking scene leaves the views' time shifts unobservable, which is
+flagged (placeholder shift 0, as ``align --allow-unobservable``) rather than refused.
 """
 from __future__ import annotations
 
@@ -50,10 +55,13 @@ class CorpusSpec:
     test: int = 0
     probes: int | None = None
     name: str = "sim-corpus"
+    rig: str = "lq-hq"
 
     def check(self) -> "CorpusSpec":
-        from capture.sim import SCENES
+        from capture.sim import RIGS, SCENES
 
+        if self.rig not in RIGS:
+            raise BenchError(f"rig {self.rig!r} unknown (choose from {', '.join(RIGS)})")
         if not self.seeds or len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
             raise BenchError(f"seeds must be distinct non-negative integers, got {list(self.seeds)}")
         bad = [s for s in self.scenes if s not in SCENES]
@@ -84,6 +92,7 @@ class SequenceTask:
     session: str
     aligned: str
     probes: int | None = None
+    rig: str = "lq-hq"
 
 
 def build_sequence(task: SequenceTask) -> dict:
@@ -91,9 +100,9 @@ def build_sequence(task: SequenceTask) -> dict:
     from align.pipeline import align_session
     from capture.sim import simulate
 
-    sim = simulate(task.session, rig="lq-hq", scene=task.scene, seconds=task.seconds, seed=task.seed,
+    sim = simulate(task.session, rig=task.rig, scene=task.scene, seconds=task.seconds, seed=task.seed,
                    time_shift_us=task.time_shift_us, scale=task.scale, progress=False, workers=1)
-    opts = {"progress": False, "workers": 1}
+    opts = {"progress": False, "workers": 1, **({} if task.rig == "lq-hq" else {"on_unobservable": "flag"})}
     if task.probes is not None:
         opts["probes"] = task.probes
     align_session(task.session, task.aligned, **opts)
@@ -107,8 +116,15 @@ def _tasks(spec: CorpusSpec, work: Path) -> list[SequenceTask]:
         shift = round(spec.time_shifts_ms[i % len(spec.time_shifts_ms)] * 1000) if spec.time_shifts_ms else None
         name = f"{scene}-seed{seed}"
         out.append(SequenceTask(seed, scene, spec.seconds, spec.scale, shift, str(work / "sessions" / name),
-                                str(work / "aligned" / name), spec.probes))
+                                str(work / "aligned" / name), spec.probes, spec.rig))
     return out
+
+
+def _datasets(aligned: Path) -> list[Path]:
+    """The aligned datasets of one sequence: itself, or a multi-view alignment's per-view folders."""
+    if (aligned / "aligned.json").is_file():
+        return [aligned]
+    return sorted(p for p in aligned.iterdir() if (p / "aligned.json").is_file())
 
 
 @dataclass
@@ -146,8 +162,8 @@ def make_corpus(out: str | Path, spec: CorpusSpec = CorpusSpec(), *, executor: E
             executor.make(len(tasks)).run(tasks, done, fn=build_sequence, key=lambda t: f"corpus-seed{t.seed}")
         finally:
             bar.close()
-        entries = [manifest_entry(AlignedDataset(t.aligned), root=work, split=split, **info[t.seed])
-                   for t, split in zip(tasks, spec.splits())]
+        entries = [manifest_entry(AlignedDataset(root), root=work, split=split, **info[t.seed])
+                   for t, split in zip(tasks, spec.splits()) for root in _datasets(Path(t.aligned))]
         write_manifest(work / MANIFEST, name=spec.name, entries=entries,
                        created={"program": "depthbench bench corpus", "options": dataclasses.asdict(spec)})
         publish_directory(work, out)

@@ -21,14 +21,17 @@ from methods.nn.geometry import normals_from_depth
 
 @dataclass
 class ModelConfig:
-    """``width``: first channel step (8 -> 16 -> 32 -> 64 -> 128); ``residual``: add the input depth."""
+    """``width``: first channel step (8 -> 16 -> 32 -> 64 -> 128); ``residual``: add the input depth;
+    ``input_scale_m``: centred input coding (0: metres, as released; see :mod:`methods.ddd.net`)."""
 
     width: int = 8
     residual: bool = True
+    input_scale_m: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.width < 1:
-            raise ValueError(f"model.width must be >= 1, got {self.width}")
+        if self.width < 1 or self.input_scale_m < 0 or (self.input_scale_m and not self.residual):
+            raise ValueError(f"model.width must be >= 1 and model.input_scale_m >= 0 (with residual = true), "
+                             f"got {self.width}, {self.input_scale_m}")
 
 
 @dataclass
@@ -58,7 +61,7 @@ class LossConfig:
 
 
 def build(model: ModelConfig) -> DDDNet:
-    return DDDNet(width=model.width, residual=model.residual)
+    return DDDNet(width=model.width, residual=model.residual, input_scale_m=model.input_scale_m)
 
 
 def multiview_loss(net: DDDNet, batch: dict, cfg: LossConfig, module: DDDLoss) -> tuple[torch.Tensor, dict]:

@@ -3,7 +3,9 @@
 The manifest names the per-view aligned datasets of multi-view alignments (``ALIGNED/view0`` ...
 with ``ALIGNED/rig.json`` beside them; :mod:`methods.ddd.multiview`); samples are simultaneous
 frames of all views of one session, whole frames (optionally halved), no augmentation. The loss is
-eq. 22 (:mod:`methods.ddd.model`); no reference depth and no truth is read.
+eq. 22 (:mod:`methods.ddd.model`); no reference depth and no truth is read. ``[warmup]`` (``tiny``):
+the network is first fitted to a smoothing of its own input on crops of the training views
+(:mod:`methods.ddd.warmup`: self-supervised too), then trained with eq. 22.
 
 Run folder: ``RUN/ddd/`` (checkpoint, history, curves) and ``RUN/ddd.safetensors``.
 """
@@ -14,6 +16,7 @@ from pathlib import Path
 
 from methods.ddd.model import LossConfig, ModelConfig, batch_loss, build
 from methods.ddd.multiview import MultiViewSamples, rig_groups
+from methods.ddd.warmup import WarmupConfig, warm_start
 from methods.nn.config import OptimConfig
 from methods.nn.train import RunContext, Trainer, register_trainer
 from methods.nn.trainer import FitJob, seeded
@@ -41,6 +44,7 @@ class DDDConfig:
     loss: LossConfig = field(default_factory=LossConfig)
     data: MultiViewDataConfig = field(default_factory=MultiViewDataConfig)
     optim: OptimConfig = field(default_factory=OptimConfig)
+    warmup: WarmupConfig = field(default_factory=WarmupConfig)
 
 
 def _samples(datasets, cfg: DDDConfig):
@@ -49,11 +53,26 @@ def _samples(datasets, cfg: DDDConfig):
     return MultiViewSamples(rig_groups(datasets), downsample=cfg.data.downsample, preload=cfg.data.preload)
 
 
+def _views(samples: MultiViewSamples) -> list:
+    """Every view of every sample as ``(depth (1, h, w), mask (1, h, w))`` for the warm start."""
+    out = []
+    for k in range(len(samples)):
+        s = samples[k]
+        out += [(s["depth"][v], s["valid"][v]) for v in range(s["depth"].shape[0])]
+    return out
+
+
 def train_ddd(ctx: RunContext) -> dict[str, Path]:
     cfg: DDDConfig = ctx.config
     train = ctx.manifest.split("train")
-    job = FitJob(name="ddd", model=seeded(lambda: build(cfg.model), cfg.optim.seed), loss=batch_loss(cfg.loss),
-                 train=_samples(train, cfg), validation=_samples(ctx.manifest.split("validation"), cfg),
+    samples = _samples(train, cfg)
+
+    def model():
+        net = build(cfg.model)
+        return warm_start(net, _views(samples), cfg.warmup, seed=cfg.optim.seed) if cfg.warmup.steps else net
+
+    job = FitJob(name="ddd", model=seeded(model, cfg.optim.seed), loss=batch_loss(cfg.loss),
+                 train=samples, validation=_samples(ctx.manifest.split("validation"), cfg),
                  optim=cfg.optim, folder=ctx.out / "ddd", num_workers=cfg.data.num_workers,
                  meta={"trained_on": [ds.checksum for ds in train]})
     model = ctx.fit(job).model

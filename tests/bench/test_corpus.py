@@ -31,4 +31,21 @@ def test_corpus_refuses_bad_specs_before_work(tmp_path):
         make_corpus(tmp_path / "c", CorpusSpec(seeds=(1, 2), validation=1, test=1))
     with pytest.raises(BenchError, match="unknown"):
         make_corpus(tmp_path / "c", CorpusSpec(scenes=("nope",)))
+    with pytest.raises(BenchError, match="rig 'nope' unknown"):
+        make_corpus(tmp_path / "c", CorpusSpec(rig="nope"))
     assert not (tmp_path / "c").exists()
+
+
+def test_a_multiview_sequence_gives_one_manifest_dataset_per_view(tmp_path):
+    from bench.corpus import _datasets
+
+    single, multi = tmp_path / "single", tmp_path / "multi"
+    single.mkdir()
+    (single / "aligned.json").write_text("{}")
+    for v in ("view1", "view0", "figures"):
+        (multi / v).mkdir(parents=True)
+    for v in ("view1", "view0"):
+        (multi / v / "aligned.json").write_text("{}")
+    (multi / "rig.json").write_text("{}")
+    assert _datasets(single) == [single]
+    assert _datasets(multi) == [multi / "view0", multi / "view1"]

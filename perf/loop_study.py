@@ -64,7 +64,7 @@ def run_one(seed: int, effects: dict, args) -> dict:
     t_sim = time.perf_counter() - t0
     setup = pair_setup(open_session(root), lq="lq", hq="hq")
     t1, c1 = time.perf_counter(), time.process_time()
-    pf = fit_pair(setup, AlignOptions(progress=False))
+    pf = fit_pair(setup, AlignOptions(progress=False, detect_scale=args.detect_scale))
     t_fit, c_fit = time.perf_counter() - t1, time.process_time() - c1
     loop = close_loop(setup, pf, options=LoopOptions(replicates=args.replicates))
     found = {f.name: f.to_dict() for f in loop.findings if f.source == "found"}
@@ -145,6 +145,8 @@ def main(argv=None) -> None:
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--replicates", type=int, default=100)
     ap.add_argument("--cache", default="/tmp/depthbench-loop-study")
+    ap.add_argument("--detect-scale", type=float, default=None,
+                    help="align's feature detection scale (default: align's own choice)")
     ap.add_argument("--jsonl", default=None, help="append every session's result to this file")
     ap.add_argument("--simulated", action="store_true", help="rendered lq-hq sessions and the whole loop (slow)")
     args = ap.parse_args(argv)

@@ -190,3 +190,33 @@ def test_hq_lens_correction_resamples_depth_on_the_corrected_ray():
         off_plane[name] = np.abs(X @ n_plane - c_plane) / np.linalg.norm(n_plane)
     assert np.max(off_plane["kept"]) > 5e-3 and np.median(off_plane["kept"]) > 5e-4  # metres: off the plane
     assert np.max(off_plane["resampled"]) < 2e-4  # exact on a plane up to float32 and the gradient's differences
+
+
+def test_two_way_clusters_count_errors_shared_across_probes():
+    """Rows of a probe share one error, rows of an image region another that recurs in every probe
+    (a static scene's keypoints): over repeated draws the two-way sandwich deviation of the slope
+    matches its spread, where clustering by probe alone claims 2x too little; with one of the two
+    groupings trivial (each row its own cluster, or both the same) it is the one-way deviation."""
+    from align.loop.loop import sandwich, sandwich_two_way
+
+    rng = np.random.default_rng(3)
+    probes, cells, per = 30, 16, 40
+    probe = np.repeat(np.arange(probes), per)
+    cell = rng.integers(0, cells, probe.size)
+    x = rng.uniform(-1, 1, probe.size) + 0.5 * (cell / cells - 0.5)  # the covariate varies with the region
+    J = np.stack([np.ones_like(x), x], axis=1)
+    est, sd_probe, sd_two = [], [], []
+    for _ in range(300):
+        e = (0.3 * rng.standard_normal(probes)[probe] + 0.5 * rng.standard_normal(cells)[cell] * x
+             + 0.5 * rng.standard_normal(probe.size))
+        beta = np.linalg.lstsq(J, e, rcond=None)[0]
+        r = e - J @ beta
+        est.append(beta[1])
+        sd_probe.append(np.sqrt(sandwich(J, r, probe, 1e9)[1, 1]))
+        sd_two.append(np.sqrt(max(sandwich_two_way(J, r, probe, cell, 1e9)[1, 1], 0)))
+    spread = np.std(est)
+    assert np.sqrt(np.mean(np.square(sd_two))) == pytest.approx(spread, rel=0.3)
+    assert np.sqrt(np.mean(np.square(sd_probe))) < 0.6 * spread
+    rows = np.arange(probe.size)
+    assert np.allclose(sandwich_two_way(J, r, probe, rows, 1e9), sandwich(J, r, probe, 1e9))
+    assert np.allclose(sandwich_two_way(J, r, probe, probe, 1e9), sandwich(J, r, probe, 1e9))

@@ -148,6 +148,31 @@ def sensor_profile(name: str, *, focal_px: float | None = None) -> StereoNoise |
     return noise if focal_px is None else in_pixels(noise, float(focal_px) / profile_focal_px(name))
 
 
+#: The focal lengths (px) the built-in models' pixel parameters are given in: the rigs' LQ stereo
+#: camera (640x480, fx 600 px) and HQ time-of-flight depth camera (512x424, fx 365 px) at scale 1.
+DEFAULT_NATIVE_FOCAL_PX = {"stereo": 600.0, "tof": 365.0}
+
+
+def sensor_noise(model: str, *, focal_px: float, profile: str | None = None) -> StereoNoise | TofNoise:
+    """The noise of a simulated ``model`` (``"stereo"`` / ``"tof"``) sensor whose depth image has
+    focal length ``focal_px``: the measured ``profile`` (:func:`sensor_profile`) or, with None, the
+    built-in model (``StereoNoise()`` / ``TofNoise()``, native to :data:`DEFAULT_NATIVE_FOCAL_PX`).
+    Either way the pixel parameters are converted from their native focal length with
+    :func:`in_pixels`, so a smaller image (the simulator's ``scale``) keeps the sensor's depth error,
+    quantisation step in depth and angular correlation.
+
+    >>> n = sensor_noise("stereo", focal_px=150.0)   # the LQ camera at scale 0.25
+    >>> n.subpixel_px, n.correlation_px, n.texture_window_px
+    (0.02, 0.25, 3)
+    """
+    if profile is not None:
+        return sensor_profile(profile, focal_px=focal_px)
+    if model not in DEFAULT_NATIVE_FOCAL_PX:
+        raise SimulationError(f"noise model {model!r} is not one of {', '.join(DEFAULT_NATIVE_FOCAL_PX)}")
+    noise = TofNoise() if model == "tof" else StereoNoise()
+    return in_pixels(noise, float(focal_px) / DEFAULT_NATIVE_FOCAL_PX[model])
+
+
 def profile_focal_px(name: str) -> float:
     """The native focal length (px) of profile ``name``: the pixels its parameters are given in."""
     entry = _profile_entry(name)

@@ -166,7 +166,11 @@ def test_correlated_noise_has_unit_variance_and_declared_correlation():
 def test_stereo_noise_declared_in_session():
     m = json.loads((session("planes") / "session.json").read_text())
     lq = m["sensors"]["lq"]["noise"]
-    assert lq["model"] == "stereo" and lq["subpixel_px"] == StereoNoise().subpixel_px
-    assert lq["disparity_step_px"] == 1 / 32 and lq["baseline_m"] == 0.055
+    # the built-in 0.08 px and 1/32 px step are of the 600 px scale-1 camera: in this session's
+    # pixels (scale 0.5, fx 300 px) they are half that, the same depth error
+    factor = m["sensors"]["lq"]["streams"]["depth"]["intrinsics"]["fx"] / 600.0
+    assert factor == pytest.approx(0.5)
+    assert lq["model"] == "stereo" and lq["subpixel_px"] == pytest.approx(StereoNoise().subpixel_px * factor)
+    assert lq["disparity_step_px"] == pytest.approx(factor / 32) and lq["baseline_m"] == 0.055
     assert m["sensors"]["hq"]["noise"]["model"] == "tof"
     assert m["sensors"]["lq"]["technology"] == "stereo" and m["sensors"]["hq"]["technology"] == "tof"

@@ -156,3 +156,20 @@ def test_unknown_or_mismatched_profile_is_a_one_line_error(tmp_path, capfd):
         assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert all(w in r.stderr for w in words), r.stderr
         assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("name", sorted(PROFILES))
+def test_each_profile_brings_its_twin_closer_without_a_statistic_worse(name):
+    """The stored sim-to-real distances (``bench diagnose --sim-to-real`` on the real capture, written
+    by ``python -m bench.diagnose.profiles``): means over three twins, and from the simulator's
+    default sensor to the kept model no statistic grows beyond the stage rule's allowance, while
+    the random error's distance (sigma) shrinks by more than its standard errors."""
+    from bench.diagnose.twin import worse_statistics
+
+    prov = PROFILES[name]["provenance"]
+    assert prov["twin_seeds"] == [0, 1, 2]
+    stages = list(prov["distances"])
+    before, after = prov["distances"][stages[0]], prov["distances"][prov["kept_stage"]]
+    assert worse_statistics(before, after) == [], (before, after)
+    se = prov["distance_standard_errors"]
+    assert after["sigma_m"] + 2 * se[prov["kept_stage"]]["sigma_m"] < before["sigma_m"] - 2 * se[stages[0]]["sigma_m"]

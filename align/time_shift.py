@@ -42,7 +42,9 @@ Uncertainty and observability: the Gauss-Newton information of Delta is ``sum_k 
 over the moving inlier features (``v_k`` the LQ image velocity, ``sigma`` the robust residual
 scale). Features of one probe share errors (a residual T_ex offset, one limb's motion), so the
 reported standard deviation is the larger of that and the standard error of the per-probe
-estimates (robust scatter / sqrt(probes)). With fewer than ``min_moving`` moving features (a
+estimates (robust scatter / sqrt(probes)), with an error every probe of a session shares added
+in quadrature (:data:`MODEL_ERROR_US`: the first two alone were ~2.3x optimistic on simulated
+sessions). With fewer than ``min_moving`` moving features (a
 feature moves when its straight-line displacement over the window exceeds ``moving_px`` and six
 times its own tracking noise), or an information-based deviation above ``max_std_us``, the shift
 is declared unobservable (:class:`UnobservableError`), e.g. for a static scene. A minimum on the
@@ -60,6 +62,16 @@ from scipy.optimize import minimize, minimize_scalar
 from align.errors import AssociationError, OptionError, ShiftRangeError, UnobservableError
 from align.extrinsics import fit_extrinsics
 from capture.camera import Intrinsics, Transform
+
+#: The part of the time-shift error that every probe of a session shares, µs (one sigma): no
+#: within-session statistic sees it (probe scatter, a block jackknife over probes and the joint
+#: pose-and-shift sandwich of :mod:`align.loop` all left RMS error/std at 2.3-3.2; the lag-1
+#: correlation of one-probe estimates is ~0). Measured on simulated people sessions (2 s, scale
+#: 0.5; ``perf/shift_coverage.py``, notes of issue 12): solving RMS error/std = 1 gives 285 us on
+#: seeds 20-31 and 463 us on seeds 40-51 (each half's value leaves the other at 1.47 / 0.67), 383
+#: us pooled; 400 us leaves 0.76 and 1.13 (95 % intervals covering 100 % and 92 %). Part of it is
+#: the offset of the regularised stamps (~100 us RMS between the two streams there).
+MODEL_ERROR_US = 400.0
 
 log = logging.getLogger(__name__)
 
@@ -312,7 +324,8 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
                         step_us: int = DEFAULT_STEP_US, model: str = "constant", drift_ppm: float | None = None,
                         declared_shift_us: float | None = None, scale_px: float = 1.5, inlier_px: float = 2.0,
                         iterations: int = 3, max_std_us: float = 5000.0, min_moving: int = 30,
-                        moving_px: float = 1.0, t0_us: int | None = None) -> ShiftEstimate:
+                        moving_px: float = 1.0, t0_us: int | None = None,
+                        model_error_us: float = MODEL_ERROR_US) -> ShiftEstimate:
     """Find Delta (and, with ``model="linear"``, the drift) from probes; see the module docstring.
 
     Args:
@@ -323,6 +336,8 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
         drift_ppm: declared drift (used as given: only ``a`` is searched).
         declared_shift_us: declared Delta (used as given: no search, the loss is still scanned).
         max_std_us, min_moving, moving_px: the observability test.
+        model_error_us: the error shared by every probe of a session, added in quadrature to the stated
+            deviation (:data:`MODEL_ERROR_US`; 0 for data with no error but the features' own noise).
     Raises:
         UnobservableError: static scene / no moving features / too uncertain (``estimate`` attached).
         ShiftRangeError: the minimum lies on the edge of the range (``estimate`` attached).
@@ -358,7 +373,7 @@ def estimate_time_shift(probes: list[Probe], K_lq_color: Intrinsics, *, T_init: 
     # features of one probe share errors (T_ex, the motion of one limb, tracking on a deforming
     # surface): the scatter of the per-probe estimates gives an honest standard error where the
     # per-feature statistics alone would claim too much
-    std = max(std_feat, _probe_scatter(loss, a, b, step_us))
+    std = float(np.hypot(max(std_feat, _probe_scatter(loss, a, b, step_us)), model_error_us))
     est = ShiftEstimate(time_shift_us=a, std_us=std, observable=True,
                         model=model if drift_ppm is None else "constant+declared drift", drift_ppm=b * 1e6,
                         t0_us=int(loss.t0), grid_us=grid, grid_loss=vals, T_init=loss.T, n_probes=_n_probes(loss),
@@ -432,10 +447,17 @@ def _check_observable(est: ShiftEstimate, *, std_feat: float, step_us: float, ma
 
 def _probe_scatter(loss: ShiftLoss, a: float, b: float, step_us: float) -> float:
     """Standard error of Delta from the spread of one-probe estimates (robust), µs; 0 if too few."""
-    pids = np.unique(loss.probe_id)
-    if pids.size < 4:
+    _, est = probe_estimates(loss, a, b, step_us)
+    if est.size < 4:
         return 0.0
-    est = []
+    return float(1.4826 * np.median(np.abs(est - np.median(est))) / np.sqrt(est.size))
+
+
+def probe_estimates(loss: ShiftLoss, a: float, b: float, step_us: float) -> tuple[np.ndarray, np.ndarray]:
+    """Delta from each probe alone (probes with at least 5 moving features), within ``a +- step_us``:
+    ``(probe ids, estimates µs)``, in time order."""
+    pids = np.unique(loss.probe_id)
+    ids, est = [], []
     for pid in pids:
         keep = loss.probe_id == pid
         moving = keep & (loss.motion_px > np.maximum(1.0, 6 * loss.track_noise_px))
@@ -443,11 +465,27 @@ def _probe_scatter(loss: ShiftLoss, a: float, b: float, step_us: float) -> float
             continue
         res = minimize_scalar(_SubLoss(loss, keep, b), bounds=(a - step_us, a + step_us), method="bounded",
                               options={"xatol": 5.0})
+        ids.append(pid)
         est.append(res.x)
-    if len(est) < 4:
+    return np.asarray(ids, np.int64), np.asarray(est, np.float64)
+
+
+def block_jackknife_se(loss: ShiftLoss, a: float, b: float, step_us: float, *, blocks: int = 6) -> float:
+    """Standard error of Delta by a delete-one-block jackknife over ``blocks`` contiguous blocks of
+    probes (time order), µs; 0 with fewer than ``2 blocks`` probes. Errors shared by neighbouring
+    probes (the same limbs in motion, one stretch of the scene) stay inside a block, so they count,
+    where the scatter of one-probe estimates treats every probe as independent."""
+    pids = np.unique(loss.probe_id)
+    if pids.size < 2 * blocks:
         return 0.0
+    est = []
+    for part in np.array_split(pids, blocks):
+        keep = ~np.isin(loss.probe_id, part)
+        res = minimize_scalar(_SubLoss(loss, keep, b), bounds=(a - step_us, a + step_us), method="bounded",
+                              options={"xatol": 2.0})
+        est.append(res.x)
     est = np.asarray(est)
-    return float(1.4826 * np.median(np.abs(est - np.median(est))) / np.sqrt(est.size))
+    return float(np.sqrt((blocks - 1) / blocks * np.sum((est - est.mean()) ** 2)))
 
 
 def _segments(loss: ShiftLoss, a: float, b: float, step_us: float, n: int = 4) -> list[tuple[float, float]]:

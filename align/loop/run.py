@@ -28,6 +28,7 @@ from align.loop.effects.lens import add_coeffs
 from align.loop.features import pack_probes
 from align.loop.loop import DepthLoop, FeatureLoop, Finding, LoopOptions, fit_depth_effects, fit_feature_effects
 from align.loop.stratify import Signature
+from align.time_shift import MODEL_ERROR_US
 from align.warp import DepthWarper
 from capture.camera import Intrinsics, Transform
 
@@ -98,7 +99,7 @@ class LoopResult:
         pf.shift.drift_ppm = self.drift_ppm
         sd = float(np.sqrt(max(self.features.cov[6, 6], 0.0))) * 1000.0  # cluster-robust, the extended model
         if np.isfinite(sd) and sd > 0:
-            pf.shift.std_us = sd
+            pf.shift.std_us = float(np.hypot(sd, MODEL_ERROR_US))  # and the error all probes share
         if any(f.name == "clock_drift" and f.source == "found" for f in self.findings):
             pf.shift.model = "linear (loop)"
         pf.T_lq_hq = self.T_lq_hq

@@ -58,7 +58,7 @@ def _probes(shift_us, *, drift_ppm=0.0, seconds=4.0, fps_hq=30.0, fps_lq=30.0, n
 @pytest.mark.parametrize("shift_us", [-55_000, -16_538, 0, 7_777, 33_333, 55_000])
 def test_recovers_shift_to_sub_millisecond_across_the_range(shift_us):
     probes, _, _ = _probes(shift_us, seed=abs(shift_us) % 97)
-    est = estimate_time_shift(probes, K, t0_us=1_700_000_000_000_000)
+    est = estimate_time_shift(probes, K, t0_us=1_700_000_000_000_000, model_error_us=0.0)  # formula probes
     assert abs(est.time_shift_us - shift_us) < 300, (est.time_shift_us, shift_us)
     assert est.observable and est.std_us < 300
     dt, dr = est.T_init.error_to(T_lq_hq)
@@ -110,3 +110,16 @@ def test_linear_drift_model():
     assert abs(est.time_shift_us + 20_000) < 400
     seg = est.segments
     assert len(seg) == 4 and seg[-1][1] - seg[0][1] > 1500  # the local estimates show the slope
+
+
+def test_stated_deviation_counts_the_error_all_probes_share():
+    """By default the stated deviation adds the session-wide error (``MODEL_ERROR_US``) in quadrature
+    to the statistical one; the estimate itself does not change."""
+    from align.time_shift import MODEL_ERROR_US
+
+    probes, _, _ = _probes(12_345, seed=5)
+    bare = estimate_time_shift(probes, K, t0_us=1_700_000_000_000_000, model_error_us=0.0)
+    full = estimate_time_shift(probes, K, t0_us=1_700_000_000_000_000)
+    assert full.time_shift_us == bare.time_shift_us
+    assert full.std_us == pytest.approx(np.hypot(bare.std_us, MODEL_ERROR_US))
+    assert MODEL_ERROR_US > 3 * bare.std_us  # on formula probes the statistical part is small

@@ -4,7 +4,7 @@
 
     folds = 2                     # k of the out-of-fold level-1 predictions (>= 2)
     loss_on_holes = false         # true: eq. 32 also on pixels where the LQ depth is missing (hole filling)
-    [level1.model]  width, levels, use_mask, use_color           (methods.ssdd.networks.NetConfig)
+    [level1.model]  width, levels, use_mask, use_color, absolute_depth, stem, norm  (methods.ssdd.networks.NetConfig)
     [level1.data]   crop, flip, sequence_length = 1, depth_min_m, depth_max_m, preload
     [level1.optim]  epochs, batch_size, lr, weight_decay, samples_per_epoch, grad_clip, seed
     [level2.model]  ... and recurrent = [-1] (ConvLSTM levels; -1 = bottleneck)

@@ -4,7 +4,8 @@ Pure functions on tensors: depth ``(N, 1, H, W)`` metres with NaN holes in, metr
 at every pixel: the networks fill holes; callers decide whether to keep them). The networks see
 depth in the code of ``data`` (:func:`methods.nn.normalize.encode_depth`: the range coding, or the
 centred coding when ``data.depth_scale_m > 0``); level 2 codes the level-1 prediction with the LQ
-frame's centre, so both inputs share one code.
+frame's centre, so both inputs share one code. Where the net's config asks for it
+(``model.absolute_depth``), the LQ depth's range code is fed as well (:func:`absolute_code`).
 """
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import torch
 
 from methods.nn.config import DataConfig
 from methods.nn.losses import masked_l1
-from methods.nn.normalize import decode_depth, encode_depth
+from methods.nn.normalize import decode_depth, encode_depth, normalize_depth
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 
 
@@ -20,31 +21,38 @@ def _code(data: DataConfig) -> dict:
     return {"d_min": data.depth_min_m, "d_max": data.depth_max_m, "scale_m": data.depth_scale_m}
 
 
+def absolute_code(net, depth: torch.Tensor, data: DataConfig) -> torch.Tensor | None:
+    """The ``z`` channel of ``net`` (range-coded LQ depth, holes 0), or None when its config does not feed it."""
+    if not net.cfg.absolute_depth:
+        return None
+    return normalize_depth(depth, d_min=data.depth_min_m, d_max=data.depth_max_m)[0]
+
+
 def level1_depth(net: SSDDUNet, depth: torch.Tensor, rgb: torch.Tensor | None, data: DataConfig) -> torch.Tensor:
     """Level 1 on ``depth`` ``(..., 1, H, W)`` metres (and ``rgb`` ``(..., 3, H, W)`` in [0, 1]) -> metres."""
     x, valid, centre = encode_depth(depth, **_code(data))
-    return decode_depth(net(x, valid, rgb), centre=centre, **_code(data))
+    return decode_depth(net(x, valid, rgb, absolute_code(net, depth, data)), centre=centre, **_code(data))
 
 
-def _level2_inputs(level1: torch.Tensor, depth: torch.Tensor, data: DataConfig):
+def _level2_inputs(net, level1: torch.Tensor, depth: torch.Tensor, data: DataConfig):
     x, valid, centre = encode_depth(depth, **_code(data))
     x1, _, _ = encode_depth(level1, centre=centre, **_code(data))
-    return x1, x, valid, centre
+    return x1, x, valid, centre, absolute_code(net, depth, data)
 
 
 def level2_step(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
                 data: DataConfig, state: dict | None) -> tuple[torch.Tensor, dict]:
     """One frame of level 2: level-1 prediction and LQ depth ``(B, 1, H, W)`` metres -> metres, new state."""
-    x1, x, valid, centre = _level2_inputs(level1, depth, data)
-    y, state = net.step(x1, x, valid, rgb, state)
+    x1, x, valid, centre, z = _level2_inputs(net, level1, depth, data)
+    y, state = net.step(x1, x, valid, rgb, state, z)
     return decode_depth(y, centre=centre, **_code(data)), state
 
 
 def level2_depth(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
                  data: DataConfig) -> torch.Tensor:
     """Level 2 over sequences ``(B, T, 1, H, W)`` (state from zeros at ``t = 0``) -> metres."""
-    x1, x, valid, centre = _level2_inputs(level1, depth, data)
-    return decode_depth(net(x1, x, valid, rgb), centre=centre, **_code(data))
+    x1, x, valid, centre, z = _level2_inputs(net, level1, depth, data)
+    return decode_depth(net(x1, x, valid, rgb, z), centre=centre, **_code(data))
 
 
 def _mask(batch: dict, holes: bool) -> torch.Tensor:

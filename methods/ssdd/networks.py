@@ -3,10 +3,15 @@
 Both predict a correction of their first input channel (residual learning) in normalised depth
 units (:mod:`methods.nn.normalize`):
 
-* level 1, :class:`SSDDUNet`: input ``[x_lq, valid_lq?, rgb?]`` -> ``x_lq + UNet(...)``;
-* level 2, :class:`SSDDLSTMUNet`: input ``[x_l1, x_lq, valid_lq?, rgb?]`` -> ``x_l1 + UNet(...)``,
+* level 1, :class:`SSDDUNet`: input ``[x_lq, valid_lq?, rgb?, z?]`` -> ``x_lq + UNet(...)``;
+* level 2, :class:`SSDDLSTMUNet`: input ``[x_l1, x_lq, valid_lq?, rgb?, z?]`` -> ``x_l1 + UNet(...)``,
   where ``x_l1`` is the level-1 prediction; ConvLSTM cells at the chosen levels (by default the
   bottleneck) carry state from frame to frame of a sequence.
+
+``z`` (``absolute_depth``) is the LQ depth in the range coding (metres over ``depth_min_m ..
+depth_max_m`` mapped to [0, 1]): the centred coding of ``x`` hides how far a surface is, and
+stereo noise grows as ``z^2`` (the depth-adaptive bilateral filter widens its range kernel the
+same way); with this channel the correction can follow the distance.
 
 Shapes: single frames ``(B, C, H, W) -> (B, 1, H, W)``; sequences ``(B, T, C, H, W) -> (B, T, 1, H, W)``.
 Any ``H, W`` works (the decoder resizes to each skip connection, odd sizes are padded for the
@@ -34,7 +39,8 @@ class NetConfig:
     ``stem``: space-to-depth factor of the input (1: the first block at full resolution; 2 or 4:
     cheaper, but the per-pixel correction is then made at a coarser grid and learns more slowly);
     ``norm``: ``"none"`` (default) or ``"group"`` (GroupNorm: per-sample normalised features lose
-    the input's scale, and the residual correction with it; the nets stayed at the identity).
+    the input's scale, and the residual correction with it; the nets stayed at the identity);
+    ``absolute_depth``: feed the range-coded LQ depth as one more channel (see the module docstring).
     """
 
     width: int = 16
@@ -44,6 +50,7 @@ class NetConfig:
     recurrent: list[int] = field(default_factory=list)
     stem: int = 1
     norm: str = "none"
+    absolute_depth: bool = False
 
     def __post_init__(self) -> None:
         if self.norm not in NORMS:
@@ -60,7 +67,12 @@ class NetConfig:
         return sorted({r % self.levels for r in self.recurrent})
 
     def extra_channels(self) -> int:
-        return int(self.use_mask) + 3 * int(self.use_color)
+        return int(self.use_mask) + 3 * int(self.use_color) + int(self.absolute_depth)
+
+    def optional(self, valid, rgb, z) -> list:
+        """The optional input layers this config feeds, in channel order (None where not fed)."""
+        return [valid if self.use_mask else None, rgb if self.use_color else None,
+                z if self.absolute_depth else None]
 
 
 class UNet(nn.Module):
@@ -116,7 +128,7 @@ def _inputs(first: torch.Tensor, others: list[torch.Tensor | None]) -> torch.Ten
 
 
 class SSDDUNet(nn.Module):
-    """Level 1: ``forward(x_lq, valid=None, rgb=None)`` on ``(..., 1|3, H, W)`` -> normalised depth ``(..., 1, H, W)``."""
+    """Level 1: ``forward(x_lq, valid=None, rgb=None, z=None)`` on ``(..., 1|3, H, W)`` -> normalised depth ``(..., 1, H, W)``."""
 
     def __init__(self, cfg: NetConfig) -> None:
         super().__init__()
@@ -124,8 +136,9 @@ class SSDDUNet(nn.Module):
         self.unet = UNet(1 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels, stem=cfg.stem,
                          norm=cfg.norm)
 
-    def forward(self, x_lq: torch.Tensor, valid: torch.Tensor | None = None, rgb: torch.Tensor | None = None) -> torch.Tensor:
-        x = _inputs(x_lq, [valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])
+    def forward(self, x_lq: torch.Tensor, valid: torch.Tensor | None = None, rgb: torch.Tensor | None = None,
+                z: torch.Tensor | None = None) -> torch.Tensor:
+        x = _inputs(x_lq, self.cfg.optional(valid, rgb, z))
         lead = x.shape[:-3]
         flat = x.reshape(-1, *x.shape[-3:])
         res, _ = self.unet.step(flat)
@@ -144,16 +157,16 @@ class SSDDLSTMUNet(nn.Module):
         self.unet = UNet(2 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels,
                          recurrent=cfg.recurrent_levels(), stem=cfg.stem, norm=cfg.norm)
 
-    def step(self, x_l1, x_lq, valid=None, rgb=None, state: dict | None = None) -> tuple[torch.Tensor, dict]:
-        x = _inputs(x_l1, [x_lq, valid if self.cfg.use_mask else None, rgb if self.cfg.use_color else None])
+    def step(self, x_l1, x_lq, valid=None, rgb=None, state: dict | None = None, z=None) -> tuple[torch.Tensor, dict]:
+        x = _inputs(x_l1, [x_lq] + self.cfg.optional(valid, rgb, z))
         res, state = self.unet.step(x, state)
         return x_l1 + res, state
 
-    def forward(self, x_l1, x_lq, valid=None, rgb=None) -> torch.Tensor:
+    def forward(self, x_l1, x_lq, valid=None, rgb=None, z=None) -> torch.Tensor:
         state = None
         outs = []
+        at = lambda v, t: None if v is None else v[:, t]  # noqa: E731
         for t in range(x_l1.shape[1]):
-            y, state = self.step(x_l1[:, t], x_lq[:, t], None if valid is None else valid[:, t],
-                                 None if rgb is None else rgb[:, t], state)
+            y, state = self.step(x_l1[:, t], x_lq[:, t], at(valid, t), at(rgb, t), state, at(z, t))
             outs.append(y)
         return torch.stack(outs, dim=1)

@@ -35,13 +35,14 @@ def _run(net, lq, ref, roi, rgb):
     return masked_l1(pred, ref, roi)
 
 
-@pytest.mark.parametrize("kind", ["unet", "unet_color", "lstm"])
+@pytest.mark.parametrize("kind", ["unet", "unet_color", "unet_z", "lstm"])
 def test_overfits_one_batch_and_gradients_reach_every_parameter(kind):
     torch.manual_seed(0)
     if kind == "lstm":
-        net, batch = SSDDLSTMUNet(NetConfig(width=8, levels=3, recurrent=[-1, 0])), _batch(T=2, B=1)
+        net, batch = SSDDLSTMUNet(NetConfig(width=8, levels=3, recurrent=[-1, 0], absolute_depth=True)), _batch(T=2, B=1)
     else:
-        net, batch = SSDDUNet(NetConfig(width=8, levels=3, use_color=kind == "unet_color")), _batch()
+        net, batch = SSDDUNet(NetConfig(width=8, levels=3, use_color=kind == "unet_color",
+                                        absolute_depth=kind == "unet_z")), _batch()
     loss = _run(net, *batch)
     loss.backward()
     for name, p in net.named_parameters():
@@ -72,3 +73,22 @@ def test_lstm_state_carries_information_across_frames():
     a = level1_depth(single, lq, rgb, DATA)
     b = level1_depth(single, lq2, rgb, DATA)
     assert torch.equal(a[:, 2], b[:, 2])                     # level 1 has no state
+
+
+@pytest.mark.parametrize("absolute", [False, True])
+def test_only_the_absolute_depth_channel_lets_the_correction_depend_on_distance(absolute):
+    """The centred code is offset-free: moving a scene 1 m away moves level 1's output by exactly
+    1 m (up to float rounding), so the correction cannot grow with distance like stereo noise (z^2).
+    ``absolute_depth`` feeds the range-coded depth; the same scene 1 m away then gets another correction."""
+    torch.manual_seed(0)
+    net = SSDDUNet(NetConfig(width=4, levels=2, absolute_depth=absolute))
+    with torch.no_grad():
+        net.unet.head.weight.mul_(1000)       # a clearly non-zero correction
+    lq, _, _, _ = _batch()
+    near = level1_depth(net, lq[:, 0], None, DATA)
+    far = level1_depth(net, lq[:, 0] + 1.0, None, DATA)
+    shift = far - near - 1.0
+    if absolute:
+        assert shift.abs().max() > 1e-3
+    else:
+        assert shift.abs().max() < 1e-5

@@ -5,7 +5,7 @@ at every pixel: the networks fill holes; callers decide whether to keep them). T
 depth in the code of ``data`` (:func:`methods.nn.normalize.encode_depth`: the range coding, or the
 centred coding when ``data.depth_scale_m > 0``); level 2 codes the level-1 prediction with the LQ
 frame's centre, so both inputs share one code. Where the net's config asks for it
-(``model.absolute_depth``), the LQ depth's range code is fed as well (:func:`absolute_code`).
+(``model.absolute_depth``), the LQ depth relative to 2 m is fed as well (:func:`absolute_code`).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import torch
 
 from methods.nn.config import DataConfig
 from methods.nn.losses import masked_l1
-from methods.nn.normalize import decode_depth, encode_depth, normalize_depth
+from methods.nn.normalize import decode_depth, encode_depth
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 
 
@@ -21,23 +21,27 @@ def _code(data: DataConfig) -> dict:
     return {"d_min": data.depth_min_m, "d_max": data.depth_max_m, "scale_m": data.depth_scale_m}
 
 
-def absolute_code(net, depth: torch.Tensor, data: DataConfig) -> torch.Tensor | None:
-    """The ``z`` channel of ``net`` (range-coded LQ depth, holes 0), or None when its config does not feed it."""
+ABSOLUTE_REF_M = 2.0
+
+
+def absolute_code(net, depth: torch.Tensor) -> torch.Tensor | None:
+    """The ``z`` channel of ``net``: ``depth / 2 m - 1`` (0 at 2 m, the reference distance of the
+    depth-adaptive bilateral filter; holes 0), or None when its config does not feed it."""
     if not net.cfg.absolute_depth:
         return None
-    return normalize_depth(depth, d_min=data.depth_min_m, d_max=data.depth_max_m)[0]
+    return torch.where(torch.isfinite(depth), depth / ABSOLUTE_REF_M - 1.0, torch.zeros_like(depth))
 
 
 def level1_depth(net: SSDDUNet, depth: torch.Tensor, rgb: torch.Tensor | None, data: DataConfig) -> torch.Tensor:
     """Level 1 on ``depth`` ``(..., 1, H, W)`` metres (and ``rgb`` ``(..., 3, H, W)`` in [0, 1]) -> metres."""
     x, valid, centre = encode_depth(depth, **_code(data))
-    return decode_depth(net(x, valid, rgb, absolute_code(net, depth, data)), centre=centre, **_code(data))
+    return decode_depth(net(x, valid, rgb, absolute_code(net, depth)), centre=centre, **_code(data))
 
 
 def _level2_inputs(net, level1: torch.Tensor, depth: torch.Tensor, data: DataConfig):
     x, valid, centre = encode_depth(depth, **_code(data))
     x1, _, _ = encode_depth(level1, centre=centre, **_code(data))
-    return x1, x, valid, centre, absolute_code(net, depth, data)
+    return x1, x, valid, centre, absolute_code(net, depth)
 
 
 def level2_step(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,

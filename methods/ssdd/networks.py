@@ -8,10 +8,13 @@ units (:mod:`methods.nn.normalize`):
   where ``x_l1`` is the level-1 prediction; ConvLSTM cells at the chosen levels (by default the
   bottleneck) carry state from frame to frame of a sequence.
 
-``z`` (``absolute_depth``) is the LQ depth in the range coding (metres over ``depth_min_m ..
-depth_max_m`` mapped to [0, 1]): the centred coding of ``x`` hides how far a surface is, and
-stereo noise grows as ``z^2`` (the depth-adaptive bilateral filter widens its range kernel the
-same way); with this channel the correction can follow the distance.
+``z`` (``absolute_depth``, off in the built-in configs) is the LQ depth as ``d / 2 m - 1``
+(:func:`methods.ssdd.model.absolute_code`): the centred coding of ``x`` hides how far a surface
+is, and stereo noise grows as ``z^2`` (the depth-adaptive bilateral filter widens its range kernel
+the same way); with this channel the correction can follow the distance. Measured (issue 10
+worklog, 2026-11-23): held-out MSE -43 and -104 mm^2 in a bare training loop at 500 steps (two
+seeds), but no gain through ``methods train`` with the tiny recipe for a range-coded variant
+(730 vs 725 mm^2): within the run-to-run spread, so not enabled.
 
 Shapes: single frames ``(B, C, H, W) -> (B, 1, H, W)``; sequences ``(B, T, C, H, W) -> (B, T, 1, H, W)``.
 Any ``H, W`` works (the decoder resizes to each skip connection, odd sizes are padded for the
@@ -40,7 +43,7 @@ class NetConfig:
     cheaper, but the per-pixel correction is then made at a coarser grid and learns more slowly);
     ``norm``: ``"none"`` (default) or ``"group"`` (GroupNorm: per-sample normalised features lose
     the input's scale, and the residual correction with it; the nets stayed at the identity);
-    ``absolute_depth``: feed the range-coded LQ depth as one more channel (see the module docstring).
+    ``absolute_depth``: feed the LQ depth relative to 2 m as one more channel (see the module docstring).
     """
 
     width: int = 16

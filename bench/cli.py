@@ -147,6 +147,8 @@ def _add_corpus(sub) -> None:
     p.add_argument("--validation", type=int, default=1, help="sequences in the validation split (default 1)")
     p.add_argument("--test", type=int, default=0, help="sequences in the test split (default 0)")
     p.add_argument("--name", default="sim-corpus", help="corpus name (in the manifest and on leaderboards)")
+    p.add_argument("--probes", type=_positive_int, default=None,
+                   help="HQ frames each alignment fits (default: align's; the demo's one-second views: 8)")
     p.add_argument("--rig", default="lq-hq", help="simulated rig (default lq-hq; multiview4 or multiview4-hq: "
                    "DDD's four-view corpus, one manifest entry per view)")
     ex = p.add_mutually_exclusive_group()
@@ -169,7 +171,7 @@ def _corpus(args) -> int:
         raise BenchError(f"--time-shifts-ms {args.time_shifts_ms!r}: expected numbers like -20,35") from None
     spec = CorpusSpec(seeds=args.seeds, scenes=tuple(s.strip() for s in args.scenes.split(",") if s.strip()),
                       seconds=args.seconds, scale=args.scale, time_shifts_ms=shifts, validation=args.validation,
-                      test=args.test, name=args.name, rig=args.rig)
+                      test=args.test, name=args.name, rig=args.rig, probes=args.probes)
     ex = ExecutorSpec(jobs=args.jobs or (None if (args.workers or args.scheduler) else 1), workers=args.workers,
                       scheduler=args.scheduler)
     res = make_corpus(args.out, spec, executor=ex, force=args.force, progress=args.progress)

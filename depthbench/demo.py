@@ -2,21 +2,29 @@
 
 simulate (lq-hq rig, moving people and balloons, ground truth)
   -> align (time shift search + extrinsic fit + HQ depth warped onto the LQ image)
-  -> a small training corpus (other seeds, people and balloons) simulated and aligned the same way,
-     and SSDD's two levels trained on it with the ``tiny`` config (``learned``)
-  -> bench (every registered method, the trained SSDD models included, scored against the warped HQ
-     reference and the truth)
+  -> ``learned``: a small training corpus (other seeds, people and balloons) simulated and aligned the
+     same way, and a one-second four-view session (``multiview4``) aligned by the suite's multi-view
+     alignment; SSDD's two levels and DDRNet (denoise, and denoise + refine) trained on the corpus,
+     DDD self-supervised on the four views, all with the ``tiny`` config
+  -> bench (every registered method, the trained models included, scored against the warped HQ
+     reference and the truth): the seed's Table I with all its columns
   -> leaderboard (Markdown + HTML + figures)
 
 Each step calls the stage's library function (:func:`capture.sim.simulate`,
-:func:`align.pipeline.align_session`, :func:`bench.runner.run_benchmark`) with the values the
-equivalent command line would use, and prints that command so a user can repeat the step by hand.
+:func:`align.pipeline.align_session`, :func:`bench.corpus.make_corpus`, :func:`methods.nn.train.train_method`,
+:func:`bench.runner.run_benchmark`) with the values the equivalent command line would use, and prints
+that command so a user can repeat the step by hand. Steps that do not depend on each other run at
+the same time in ``jobs`` worker processes (default 2, the two cores the demo is sized for), each
+single-threaded; ``jobs=1`` runs them in order in this process.
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable
 
@@ -26,13 +34,16 @@ from depthbench.fsutil import check_output_free
 
 @dataclass
 class DemoStep:
-    """One stage of the demo: what it does, the equivalent command, the library call, its output."""
+    """One stage of the demo: what it does, the equivalent command, the library call, its output,
+    and the names of the steps it needs first (``call`` is picklable: it may run in a worker process)."""
 
     name: str
     command: str
     call: Callable[[], Any]
     output: Path
-    seconds: float = 0.0
+    needs: tuple[str, ...] = ()
+    seconds: float = 0.0        # wall time
+    cpu_seconds: float = 0.0    # CPU time of the process that ran it (children not counted)
     status: str = "pending"
 
 
@@ -40,6 +51,7 @@ class DemoStep:
 class DemoResult:
     out: Path
     steps: list[DemoStep] = field(default_factory=list)
+    seconds: float = 0.0   # wall time of the whole demo (steps overlap)
 
     @property
     def leaderboard(self) -> Path:
@@ -51,7 +63,7 @@ class DemoConfig:
     """The demo's knobs: scene ``seconds``, ``seed``, the sensors' ``time_shift_ms`` (None: drawn from the
     seed), image ``scale`` (1 = the sensors' own size; the default 0.5 = 320x240 LQ frames keeps the
     whole demo, training included, within minutes on two cores), the benchmark's ``methods`` and local
-    ``jobs``; ``probes`` and ``reports`` shrink a test run."""
+    ``jobs`` (also the demo's worker processes; None: 2); ``probes`` and ``reports`` shrink a test run."""
 
     seconds: float = 3.0
     seed: int = 0
@@ -62,8 +74,13 @@ class DemoConfig:
     progress: bool = True
     probes: int | None = None      # HQ frames that fit the time shift and extrinsics (None: align's default)
     reports: bool = True           # the alignment report and the leaderboard's Markdown/HTML/figures
-    learned: bool = True           # train SSDD (tiny) on a corpus of other seeds and score it too
+    learned: bool = True           # train SSDD, DDRNet and DDD (tiny) and score them too
     corpus_seconds: float = 2.0    # scene time per training sequence (three sequences: two train, one validation)
+    multiview_seconds: float = 1.0  # scene time of DDD's four-view session (30 simultaneous samples at 30 fps)
+
+    @property
+    def workers(self) -> int:
+        return self.jobs or 2
 
 
 def _command(*parts: Any) -> str:
@@ -84,65 +101,153 @@ def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
     jobs = "" if config.jobs is None else f"--jobs {config.jobs}"
     probes = "" if config.probes is None else f"--probes {config.probes}"
     no_report = "" if config.reports else "--no-report"
+    progress = config.progress and config.workers == 1   # bars of parallel workers would interleave
     align_opts = {"report": config.reports, **({} if config.probes is None else {"probes": config.probes})}
     steps = [
         DemoStep(name="simulate an LQ+HQ rig", output=session,
                  command=_command("capture simulate --rig lq-hq --scene people --seconds", f"{config.seconds:g}",
                                   "--seed", config.seed, scale, "--out", session, shift, f),
-                 call=lambda: simulate(session, rig="lq-hq", scene="people", seconds=config.seconds,
-                                       seed=config.seed, force=force, time_shift_us=shift_us, scale=config.scale,
-                                       progress=config.progress)),
-        DemoStep(name="align HQ onto LQ", output=aligned,
+                 call=partial(simulate, session, rig="lq-hq", scene="people", seconds=config.seconds,
+                              seed=config.seed, force=force, time_shift_us=shift_us, scale=config.scale,
+                              progress=progress)),
+        DemoStep(name="align HQ onto LQ", output=aligned, needs=("simulate an LQ+HQ rig",),
                  command=_command("align", session, "--out", aligned, probes, no_report, f),
-                 call=lambda: align_session(session, aligned, force=force, progress=config.progress, **align_opts)),
+                 call=partial(align_session, session, aligned, force=force, progress=progress, **align_opts)),
     ]
     params, weights_args = {}, ""
-    if config.learned:
-        learned_steps, params = _learned_steps(out, config, force=force)
-        steps += learned_steps
+    if config.learned:   # the corpora first: the longest chains start at once
+        corpora, trainings, params = _learned_steps(out, config, force=force, progress=progress)
+        steps = corpora + steps + trainings
         if config.methods != "all":
             params = {k: v for k, v in params.items() if k in config.methods.split(",")}
         weights_args = " ".join(f"--param {m}.weights={p['weights']}" for m, p in params.items())
     steps.append(DemoStep(
-        name="benchmark every method", output=results,
+        name="benchmark every method", output=results, needs=tuple(s.name for s in steps),
         command=_command("bench run --data", aligned, "--methods", config.methods, weights_args, "--out", results,
                          jobs, no_report, f),
-        call=lambda: run_benchmark([aligned], config.methods, results, force=force, jobs=config.jobs,
-                                   progress=None if config.progress else False, report=config.reports, params=params)))
+        call=partial(run_benchmark, [aligned], config.methods, results, force=force, jobs=config.jobs,
+                     progress=None if config.progress else False, report=config.reports, params=params)))
     return steps
 
 
-def _learned_steps(out: Path, config: DemoConfig, *, force: bool) -> tuple[list[DemoStep], dict]:
-    """Corpus (three sequences of other seeds than the benchmark session) and SSDD trained with ``tiny``."""
+def _learned_steps(out: Path, config: DemoConfig, *, force: bool,
+                   progress: bool) -> tuple[list[DemoStep], list[DemoStep], dict]:
+    """Two corpora (other seeds than the benchmark session), the tiny trainings on them, and the
+    benchmark's ``params`` naming the trained weights."""
     from bench.corpus import CorpusSpec, make_corpus
     from bench.executors import ExecutorSpec
     from methods.nn.train import train_method
 
-    corpus, run = out / "corpus", out / "ssdd"
+    corpus, multiview = out / "corpus", out / "corpus_multiview"
     seeds = tuple(1000 + 10 * config.seed + k for k in (1, 2, 3))
-    spec = CorpusSpec(seeds=seeds, seconds=config.corpus_seconds, scale=config.scale, validation=1, test=0,
-                      probes=config.probes, name=f"demo-corpus-seed{config.seed}")
-    ex = ExecutorSpec(jobs=config.jobs or 2)
+    mv_seed = 2000 + 10 * config.seed + 1
+    common = dict(scale=config.scale, probes=config.probes)
+    spec = CorpusSpec(seeds=seeds, seconds=config.corpus_seconds, validation=1, test=0,
+                      name=f"demo-corpus-seed{config.seed}", **common)
+    mv_spec = CorpusSpec(seeds=(mv_seed,), scenes=("people",), seconds=config.multiview_seconds, validation=0,
+                         test=0, rig="multiview4", name=f"demo-multiview-seed{config.seed}",
+                         **{**common, "probes": config.probes or 8})
+    # inside a demo worker the corpus runs its sequences in that worker; alone, in config.jobs processes
+    ex = ExecutorSpec(jobs=1 if config.workers > 1 else (config.jobs or 2))
     f = "--force" if force else ""
-    steps = [
+    probes = "" if config.probes is None else f"--probes {config.probes}"
+    corpus_cmd = partial(_command, "bench corpus --scale", f"{config.scale:g}", f"--jobs {ex.jobs}")
+    corpora = [
         DemoStep(name="simulate + align a training corpus", output=corpus,
-                 command=_command("bench corpus --out", corpus, "--seeds", ",".join(map(str, seeds)), "--seconds",
-                          f"{config.corpus_seconds:g}", "--scale", f"{config.scale:g}", "--validation 1",
-                          f"--jobs {ex.jobs}", f),
-                 call=lambda: make_corpus(corpus, spec, executor=ex, force=force,
-                                          progress=None if config.progress else False)),
-        DemoStep(name="train SSDD (both levels, tiny)", output=run,
-                 command=_command("methods train ssdd_lstm --dataset", corpus / "training.json", "--config tiny --out", run, f),
-                 call=lambda: train_method("ssdd_lstm", dataset=corpus / "training.json", config="tiny", out=run,
-                                           force=force, progress=config.progress)),
+                 command=corpus_cmd("--out", corpus, "--seeds", ",".join(map(str, seeds)), "--seconds",
+                                    f"{config.corpus_seconds:g}", "--validation 1", probes, f),
+                 call=partial(make_corpus, corpus, spec, executor=ex, force=force, progress=progress)),
+        DemoStep(name="simulate + align four views (DDD)", output=multiview,
+                 command=corpus_cmd("--out", multiview, "--rig multiview4 --scenes people --seeds", mv_seed,
+                                    "--seconds", f"{config.multiview_seconds:g}", "--validation 0 --probes",
+                                    mv_spec.probes, f),
+                 call=partial(make_corpus, multiview, mv_spec, executor=ex, force=force, progress=progress)),
     ]
-    params = {m: {"weights": str(run / f"{m}.safetensors")} for m in ("ssdd_unet", "ssdd_lstm")}
-    return steps, params
+    params, trainings = {}, []
+    for method, label, data, trained in (("ssdd_lstm", "SSDD (both levels)", corpus, ("ssdd_unet", "ssdd_lstm")),
+                                         ("ddrnet", "DDRNet (denoise, refine)", corpus, ("ddrnet", "ddrnet_refine")),
+                                         ("ddd", "DDD (self-supervised)", multiview, ("ddd",))):
+        run = out / "runs" / method.split("_")[0]
+        trainings.append(DemoStep(
+            name=f"train {label}, tiny", output=run, needs=(corpora[0 if data == corpus else 1].name,),
+            command=_command("methods train", method, "--dataset", data / "training.json", "--config tiny --out", run, f),
+            call=partial(train_method, method, dataset=data / "training.json", config="tiny", out=run, force=force,
+                         progress=progress)))
+        params.update({m: {"weights": str(run / f"{m}.safetensors")} for m in trained})
+    return corpora, trainings, params
+
+
+def _worker_init() -> None:
+    """A demo worker: one thread for torch, OpenMP and numba (two workers share two cores); set before
+    any of them is imported in the fresh (spawned) process, which is when they read it."""
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ[var] = "1"
+    if "torch" in sys.modules:   # imported already (by the main module's re-import): set it directly
+        sys.modules["torch"].set_num_threads(1)
+
+
+def _cpu_timed(call: Callable[[], Any]) -> float:
+    """Run ``call``; its CPU seconds in this process (what the step costs on a quiet machine)."""
+    t0 = time.process_time()
+    call()
+    return time.process_time() - t0
+
+
+def _say(step: DemoStep, what: str) -> None:
+    extra = f" ({step.seconds:.0f} s, CPU {step.cpu_seconds:.0f} s)" if what == "done" else f": {step.command}"
+    print(f"[demo] {what} {step.name}{extra}", file=sys.stderr, flush=True)
+
+
+def _run_in_order(steps: list[DemoStep]) -> None:
+    for step in steps:
+        _say(step, "start")
+        t0 = time.perf_counter()
+        try:
+            step.cpu_seconds = _cpu_timed(step.call)
+        except DepthbenchError:
+            step.status = "failed"
+            raise
+        finally:
+            step.seconds = time.perf_counter() - t0
+        step.status = "done"
+        _say(step, "done")
+
+
+def _run_parallel(steps: list[DemoStep], workers: int) -> None:
+    """Every step as soon as the steps it needs are done, at most ``workers`` at once (plan order first)."""
+    import multiprocessing
+
+    pending, running = list(steps), {}   # running: Future -> (step, start time)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=_worker_init) as pool:
+        while pending or running:
+            done = {s.name for s in steps if s.status == "done"}
+            for step in [s for s in pending if set(s.needs) <= done][:workers - len(running)]:
+                pending.remove(step)
+                step.status = "running"
+                _say(step, "start")
+                running[pool.submit(_cpu_timed, step.call)] = (step, time.perf_counter())
+            finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
+            for fut in finished:
+                step, t0 = running.pop(fut)
+                step.seconds = time.perf_counter() - t0
+                _finish(step, fut, pool)
+
+
+def _finish(step: DemoStep, fut: Future, pool: ProcessPoolExecutor) -> None:
+    try:
+        step.cpu_seconds = fut.result()
+    except BaseException:
+        step.status = "failed"
+        pool.shutdown(cancel_futures=True)
+        raise
+    step.status = "done"
+    _say(step, "done")
 
 
 def run_demo(out: str | Path, *, seconds: float = 3.0, seed: int = 0, force: bool = False,
              time_shift_ms: float | None = None, config: DemoConfig | None = None) -> DemoResult:
-    """Run the stages in order into ``out`` (``session/``, ``aligned/``, ``results/``).
+    """Run the stages into ``out`` (``session/``, ``aligned/``, ``results/``; with ``learned``, also
+    ``corpus/``, ``corpus_multiview/`` and ``runs/``), independent ones side by side.
 
     ``config`` (None: built from ``seconds``, ``seed`` and ``time_shift_ms``) sets every knob.
     Raises the first stage's error (a :class:`DepthbenchError`, one line).
@@ -153,19 +258,16 @@ def run_demo(out: str | Path, *, seconds: float = 3.0, seed: int = 0, force: boo
     out = Path(out)
     check_output_free(out, force=force, what="demo output folder")
     out.mkdir(parents=True, exist_ok=True)
-    result = DemoResult(out)
-    for step in plan(out, config, force=force):
-        result.steps.append(step)
-        print(f"[demo] {step.name}: {step.command}", file=sys.stderr, flush=True)
-        t0 = time.perf_counter()
-        try:
-            step.call()
-        except DepthbenchError:
-            step.status = "failed"
-            raise
-        finally:
-            step.seconds = time.perf_counter() - t0
-        step.status = "done"
+    result, t0 = DemoResult(out), time.perf_counter()
+    steps = plan(out, config, force=force)
+    result.steps = steps
+    *work, bench = steps
+    if config.workers > 1 and len(work) > 1:
+        _run_parallel(work, config.workers)
+    else:
+        _run_in_order(work)
+    _run_in_order([bench])
+    result.seconds = time.perf_counter() - t0
     return result
 
 
@@ -194,9 +296,9 @@ def _cli(args) -> int:
     result = run_demo(args.out, force=args.force,
                       config=DemoConfig(seconds=args.seconds, seed=args.seed, time_shift_ms=args.time_shift_ms,
                                         scale=args.scale))
-    print(f"\ndemo finished in {sum(s.seconds for s in result.steps):.0f} s; outputs:")
+    print(f"\ndemo finished in {result.seconds:.0f} s (steps overlap: two at a time); outputs:")
     for step in result.steps:
-        print(f"  {step.name:<34} {step.status:<6} {step.seconds:>6.0f} s  {step.output}")
+        print(f"  {step.name:<40} {step.status:<6} {step.seconds:>6.0f} s (CPU {step.cpu_seconds:>4.0f} s)  {step.output}")
     if result.leaderboard.exists():
         print(f"\nleaderboard: {result.leaderboard}  (HTML: {result.leaderboard.with_suffix('.html')})")
     return 0

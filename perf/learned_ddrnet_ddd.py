@@ -9,6 +9,11 @@ against the suite's hole-aware bilateral filter in the same run (the ratio is th
 between machines). Training: samples per second of the ``tiny`` configs' loss + backward + Adam step on
 synthetic batches of their shapes (DDRNet: batches of 8 crops of 64x64; DDD: batches of 2 samples of
 four 160x120 views, splatting between them). Runs are interleaved; the table gives medians.
+
+Is the inference time the networks' arithmetic or waste? Each network's multiply-adds per frame are
+counted (``torch.utils.flop_counter``) and its achieved GFLOP/s set against a large float32 matrix
+product timed in the same run (the CPU's practical peak for this torch build): a ratio near 1 says the
+time is the convolutions themselves, far below 1 that something else (copies, small kernels) costs.
 """
 from __future__ import annotations
 
@@ -65,6 +70,32 @@ def inference(repeats: int, device: str) -> dict:
                        "bilateral (reference)": lambda: bf.denoise(depth)}, repeats)
 
 
+def gflops(device: str) -> dict:
+    """GFLOP (2 x multiply-adds) of one 640x480 frame per network, counted by torch."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    d = torch.full((1, 1, 480, 640), 2.0, device=device)
+    g = torch.rand(1, 1, 480, 640, device=device)
+    torch.manual_seed(0)
+    nets = {"ddrnet": (build(ModelConfig(), refine=False), lambda n: n(d, None)),
+            "ddrnet_refine": (build(ModelConfig(), refine=True), lambda n: n(d, g)),
+            "ddd": (ddd_build(DDDModel()), lambda n: n(d, torch.ones_like(d)))}
+    out = {}
+    for k, (net, call) in nets.items():
+        counter = FlopCounterMode(display=False)
+        with torch.no_grad(), counter:
+            call(net.to(device).eval())
+        out[k] = counter.get_total_flops() / 1e9
+    return out
+
+
+def matmul_gflops(repeats: int, device: str) -> float:
+    """Achieved GFLOP/s of a 1024 x 1024 float32 matrix product (the reference for the networks)."""
+    a, b = torch.randn(1024, 1024, device=device), torch.randn(1024, 1024, device=device)
+    ms = _median_ms({"mm": lambda: torch.mm(a, b)}, max(repeats, 5) * 4)["mm"]
+    return 2 * 1024 ** 3 / (ms / 1000) / 1e9
+
+
 def _ddrnet_batch(b=8, s=64):
     rng = np.random.default_rng(0)
     ref = torch.from_numpy(rng.uniform(1.0, 3.0, (b, 1, 1, s, s)).astype(np.float32))
@@ -111,11 +142,15 @@ def main(argv=None) -> int:
     # process (measured: ddrnet 1.8 instead of 57 samples/s), which is not what a training run sees
     train = training(args.repeats)
     inf = inference(args.repeats, args.device)
+    flops, peak = gflops(args.device), matmul_gflops(args.repeats, args.device)
     ref = inf["bilateral (reference)"]
     print(f"inference, one 640x480 frame, {args.device}, {args.threads} CPU threads (median of {args.repeats}):")
-    print(f"{'method':24s} {'ms/frame':>10s} {'x bilateral':>12s}")
+    print(f"{'method':24s} {'ms/frame':>10s} {'x bilateral':>12s} {'GFLOP':>8s} {'GFLOP/s':>8s} {'x matmul':>9s}")
     for k, v in inf.items():
-        print(f"{k:24s} {v:10.1f} {v / ref:12.2f}")
+        f = flops.get(k)
+        extra = f" {f:8.1f} {f / (v / 1000):8.1f} {f / (v / 1000) / peak:9.2f}" if f else ""
+        print(f"{k:24s} {v:10.1f} {v / ref:12.2f}{extra}")
+    print(f"reference: 1024x1024 float32 matrix product {peak:.1f} GFLOP/s")
     print(f"\ntraining, tiny configs, {args.threads} CPU threads (loss + backward + Adam step, median of {args.repeats}):")
     for k, v in train.items():
         print(f"{k:24s} {v:10.3g} samples/s")

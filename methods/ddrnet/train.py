@@ -50,7 +50,8 @@ def _samples(datasets, cfg: DDRNetConfig, *, train: bool):
         return None
     d = cfg.data
     return AlignedSamples(datasets, crop=d.crop if train else 0, flip=d.flip and train, seed=cfg.optim.seed,
-                          preload=d.preload, roi_crop=d.roi_crop if train else 0.0)
+                          preload=d.preload, roi_crop=d.roi_crop if train else 0.0,
+                          stride=1 if train else d.validation_stride)
 
 
 def train_ddrnet(ctx: RunContext) -> dict[str, Path]:

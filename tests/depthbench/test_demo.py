@@ -60,3 +60,33 @@ def test_demo_refuses_a_bad_scale(tmp_path, capsys):
     rc = main(["demo", "--out", str(tmp_path / "z"), "--scale", "1.5"])
     assert_one_line_error(CliResult(rc, "", capsys.readouterr().err), "--scale must be in (0, 1]")
     assert not (tmp_path / "z").exists()
+
+
+def test_parallel_steps_start_after_the_steps_they_need_and_a_failure_stops_the_rest(tmp_path):
+    """The demo's scheduler (two worker processes): a step runs only once what it needs is done, whatever
+    the plan order; a failing step raises its error and what depends on it never runs."""
+    import shutil
+    import time
+    from functools import partial
+    from pathlib import Path
+
+    from depthbench.demo import DemoStep, _run_parallel
+
+    a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
+    steps = [DemoStep(name="copy", command="", call=partial(shutil.copyfile, a, b), output=b, needs=("slow write",)),
+             DemoStep(name="slow write", command="", call=partial(_sleep_then_write, a, "x"), output=a),
+             DemoStep(name="sleep", command="", call=partial(time.sleep, 0.1), output=tmp_path)]
+    _run_parallel(steps, 2)
+    assert b.read_text() == "x" and [s.status for s in steps] == ["done"] * 3
+    bad = [DemoStep(name="fails", command="", call=partial(shutil.copyfile, tmp_path / "missing", c), output=c),
+           DemoStep(name="after", command="", call=partial(Path.write_text, c, "no"), output=c, needs=("fails",))]
+    with pytest.raises(FileNotFoundError):
+        _run_parallel(bad, 2)
+    assert [s.status for s in bad] == ["failed", "pending"] and not c.exists()
+
+
+def _sleep_then_write(path, text):
+    import time
+
+    time.sleep(0.5)
+    path.write_text(text)

@@ -63,7 +63,7 @@ def test_ddrnet_trained_beats_raw_on_held_out_data_and_is_reproducible(tmp_path)
         assert ta.keys() == tb.keys() and all(bool((ta[k] == tb[k]).all()) for k in ta), name
 
 
-def test_ddrnet_config_draws_roi_crops_for_training_only_and_refuses_the_centred_coding(tmp_path):
+def test_ddrnet_config_draws_roi_crops_for_training_only_strides_validation_and_refuses_the_centred_coding(tmp_path):
     import pytest
 
     from methods.ddrnet.train import DDRNetConfig, _samples
@@ -71,10 +71,11 @@ def test_ddrnet_config_draws_roi_crops_for_training_only_and_refuses_the_centred
     from methods.nn.config import from_dict, load_config
 
     tiny, _ = load_config("tiny", DDRNetConfig, family="ddrnet")
-    ds = [AlignedDataset(scene_dataset(tmp_path / "a", name="a", frames=2))]
-    assert tiny.data.roi_crop > 0
+    ds = [AlignedDataset(scene_dataset(tmp_path / "a", name="a", frames=12))]
+    assert tiny.data.roi_crop > 0 and tiny.data.validation_stride == 10
     tiny.data.crop = 32  # the synthetic frames are 48x40
-    assert _samples(ds, tiny, train=True).roi_crop == tiny.data.roi_crop
-    assert _samples(ds, tiny, train=False).roi_crop == 0.0 and _samples(ds, tiny, train=False).crop == 0
+    assert _samples(ds, tiny, train=True).roi_crop == tiny.data.roi_crop and len(_samples(ds, tiny, train=True)) == 12
+    val = _samples(ds, tiny, train=False)
+    assert val.roi_crop == 0.0 and val.crop == 0 and len(val) == 2   # frames 0 and 10: every 10th validation frame
     with pytest.raises(ConfigError, match="depth_scale_m must be 0"):
         from_dict(DDRNetConfig, {"data": {"depth_scale_m": 0.1}}, where="cfg.toml")

@@ -114,7 +114,7 @@ def register(subparsers) -> None:
     add_diagnose(sub)
 
 
-def _seeds(text: str) -> tuple[int, ...]:
+def parse_seeds(text: str) -> tuple[int, ...]:
     """``101-105`` or ``101,103,110`` -> seeds."""
     out: list[int] = []
     try:
@@ -137,7 +137,7 @@ def _add_corpus(sub) -> None:
                "--validation 1 --test 1, then: depthbench methods train ssdd_lstm --dataset corpus/training.json "
                "--config tiny --out runs/ssdd")
     p.add_argument("--out", required=True, metavar="CORPUS", help="corpus folder to create")
-    p.add_argument("--seeds", type=_seeds, default=(101, 102, 103, 104, 105), help="simulator seeds, one sequence "
+    p.add_argument("--seeds", type=parse_seeds, default=(101, 102, 103, 104, 105), help="simulator seeds, one sequence "
                    "each (default 101-105); use other seeds than your benchmark sessions")
     p.add_argument("--scenes", default="people,balloons", help="scenes cycled over the seeds (default people,balloons)")
     p.add_argument("--seconds", type=_positive_float, default=3.0, help="seconds per sequence (default 3)")

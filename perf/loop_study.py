@@ -31,6 +31,7 @@ from align.loop.effects.frames import drop_interval
 from align.loop.loop import LoopOptions
 from align.loop.run import close_loop
 from align.pipeline import AlignOptions, fit_pair, pair_setup
+from bench.cli import parse_seeds
 from capture.session import open_session
 from capture.sim import simulate
 
@@ -44,14 +45,6 @@ EXPECT = {
     "depth_offset_mm": ("depth_offset", "offset_mm", lambda v: v),
     "frame_duplicate_rate": ("duplicated_frames", "rate", lambda v: v),
 }
-
-
-def _seeds(text: str) -> list[int]:
-    out = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b or a) + 1))
-    return out
 
 
 def run_one(seed: int, effects: dict, args) -> dict:
@@ -155,7 +148,7 @@ def main(argv=None) -> None:
     if args.seconds is None:
         args.seconds = 8.0 if args.synthetic else 3.0
     rows = []
-    for seed in _seeds(args.seeds):
+    for seed in parse_seeds(args.seeds):
         row = run_synthetic(seed, effects, args) if args.synthetic else run_one(seed, effects, args)
         rows.append(row)
         print(f"seed {seed}: added {sorted(row['found']) or 'nothing'}  ({row['seconds']['total']:.1f} s loop, "

@@ -25,17 +25,10 @@ from scipy.optimize import minimize_scalar  # noqa: E402
 
 from align.pipeline import AlignOptions, fit_pair, pair_setup  # noqa: E402
 from align.time_shift import ShiftLoss, _information, _SubLoss, block_jackknife_se, probe_estimates  # noqa: E402
+from bench.cli import parse_seeds  # noqa: E402
 from capture.session import open_session  # noqa: E402
 from capture.sim import simulate  # noqa: E402
 from capture.truth import read_truth  # noqa: E402
-
-
-def _seeds(text: str) -> list[int]:
-    out = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b or a) + 1))
-    return out
 
 
 def one(seed: int, args) -> dict:
@@ -80,7 +73,7 @@ def main() -> None:
     print("| seed | error (us) | stated std (us) | error/std | std_feat | probe_se | lag-1 rho | jackknife | error/jackknife "
           "| loop: error (us) | loop sd | error/sd |")
     print("|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|")
-    for seed in _seeds(args.seeds):
+    for seed in parse_seeds(args.seeds):
         r = one(seed, args)
         rows.append(r)
         print(f"| {seed} | {r['error_us']:+.0f} | {r['std_us']:.0f} | {r['error_us'] / r['std_us']:+.2f} | "

@@ -18,6 +18,7 @@ import torch.nn.functional as F
 
 from methods.ddrnet.losses import ALBEDOS, DDRNetLoss, DDRNetWeights
 from methods.ddrnet.nets import DDRNet, denormalise_depth, normalise_depth
+from methods.nn.distributed import unwrap
 
 LUMA = (0.299, 0.587, 0.114)
 
@@ -120,8 +121,7 @@ def batch_loss(loss_cfg: LossConfig, *, d_min: float, d_max: float):
             mask = mask & (_frame(batch, "roi") > 0.5)
         if loss_cfg.max_ref_diff_m > 0:
             mask = mask & ((depth - ref).abs() < loss_cfg.max_ref_diff_m)
-        inner = net.module if hasattr(net, "module") else net
-        dn, dt = run_metres(net, depth, grey if inner.refine is not None else None, d_min=d_min, d_max=d_max)
+        dn, dt = run_metres(net, depth, grey if unwrap(net).refine is not None else None, d_min=d_min, d_max=d_max)
         return module(d_dn=dn, d_dt=dt, ref=torch.nan_to_num(ref, nan=0.0), mask=mask,
                       K=batch["camera"].to(depth.dtype), grey=grey)
 

@@ -98,3 +98,8 @@ def wrap(model: torch.nn.Module, d: Dist) -> torch.nn.Module:
 
     ids = [d.device.index] if d.device.type == "cuda" else None
     return DistributedDataParallel(model, device_ids=ids)
+
+
+def unwrap(model: torch.nn.Module) -> torch.nn.Module:
+    """The network inside :func:`wrap`'s result (the model itself when it was not wrapped)."""
+    return getattr(model, "module", model)

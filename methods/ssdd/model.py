@@ -12,6 +12,7 @@ from __future__ import annotations
 import torch
 
 from methods.nn.config import DataConfig
+from methods.nn.distributed import unwrap
 from methods.nn.losses import masked_l1
 from methods.nn.normalize import decode_depth, encode_depth
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
@@ -28,7 +29,7 @@ def absolute_code(net, depth: torch.Tensor) -> torch.Tensor | None:
     """The ``z`` channel of ``net``: ``depth / 2 m - 1`` (0 at 2 m, the reference distance of the
     depth-adaptive bilateral filter; holes 0), or None when its config does not feed it. ``net`` may
     be wrapped by ``DistributedDataParallel`` (its config is then the wrapped module's)."""
-    if not getattr(net, "module", net).cfg.absolute_depth:
+    if not unwrap(net).cfg.absolute_depth:
         return None
     return torch.where(torch.isfinite(depth), depth / ABSOLUTE_REF_M - 1.0, torch.zeros_like(depth))
 

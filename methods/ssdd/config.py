@@ -6,6 +6,8 @@
     loss_on_holes = false         # true: eq. 32 also on pixels where the LQ depth is missing (hole filling)
     [level1.model]  width, levels, use_mask, use_color, absolute_depth, stem, norm  (methods.ssdd.networks.NetConfig)
     [level1.data]   crop, flip, sequence_length = 1, depth_min_m, depth_max_m, preload
+    [level1.prefilter] kind = "none" | "bilateral", sigma_spatial, sigma_color, depth_adaptive, radius
+                    (level 1 corrects the filtered LQ depth: methods.ssdd.prefilter)
     [level1.optim]  epochs, batch_size, lr, weight_decay, samples_per_epoch, grad_clip, seed
     [level2.model]  ... and recurrent = [-1] (ConvLSTM levels; -1 = bottleneck)
     [level2.data]   ... sequence_length = N (frames per training sequence)
@@ -17,6 +19,7 @@ from dataclasses import dataclass, field
 
 from methods.nn.config import DataConfig, OptimConfig
 from methods.ssdd.networks import NetConfig
+from methods.ssdd.prefilter import PrefilterConfig
 
 
 @dataclass
@@ -24,6 +27,7 @@ class Level1Config:
     model: NetConfig = field(default_factory=NetConfig)
     data: DataConfig = field(default_factory=DataConfig)
     optim: OptimConfig = field(default_factory=OptimConfig)
+    prefilter: PrefilterConfig = field(default_factory=PrefilterConfig)
 
     def __post_init__(self) -> None:
         if self.model.recurrent:

@@ -7,6 +7,9 @@ every pixel. Each refuses a dataset of its own training or validation split
 (:func:`methods.nn.weights.leak`) unless ``allow_train_frames=true``, which the leaderboard shows
 in the method key and provenance.
 
+With a level-1 prefilter in the weights' config (:mod:`methods.ssdd.prefilter`) each frame is
+bilateral-filtered first (the base level 1 corrects).
+
 torch is imported only when a network is built (``prepare``), so listing methods stays fast.
 """
 from __future__ import annotations
@@ -61,7 +64,7 @@ class _SSDDBase(LearnedDenoiser):
 
         f = decode_tensors(self.weights_bytes(), where=self.weights_path, kind="weights")
         dev = torch.device(resolve_device(self.device))
-        nets = {"level1": SSDDUNet(self.config.level1.model)}
+        nets = {"level1": SSDDUNet(self.config.level1.model, base=self.config.level1.prefilter.enabled)}
         if self.levels == 2:
             nets["level2"] = SSDDLSTMUNet(self.config.level2.model)
         for name, net in nets.items():
@@ -73,7 +76,10 @@ class _SSDDBase(LearnedDenoiser):
         self.runtime.update(self._load())
 
     def _tensors(self, frames: list[FrameInput]):
+        """``(depth, rgb, base)`` tensors of a batch of frames (``base``: level 1's prefiltered depth or None)."""
         import torch
+
+        from methods.ssdd.prefilter import prefilter_frames
 
         dev = self.runtime["device"]
         depth = torch.from_numpy(np.stack([f.depth for f in frames])[:, None]).to(dev)
@@ -81,7 +87,8 @@ class _SSDDBase(LearnedDenoiser):
         if self.uses_color:
             rgb = torch.from_numpy(np.stack([f.color for f in frames]).transpose(0, 3, 1, 2).astype(np.float32)
                                    / 255.0).to(dev)
-        return depth, rgb
+        base = prefilter_frames((f.depth for f in frames), self.config.level1.prefilter)
+        return depth, rgb, None if base is None else torch.from_numpy(base[:, None]).to(dev)
 
     def _finish(self, out, depth_np: np.ndarray) -> np.ndarray:
         out = out.float().cpu().numpy()
@@ -107,9 +114,9 @@ class SSDDUNetDenoiser(_SSDDBase):
         shapes = {f.depth.shape for f in frames}
         if len(shapes) > 1:
             return [self._denoise_batch([f])[0] for f in frames]
-        depth, rgb = self._tensors(frames)
+        depth, rgb, base = self._tensors(frames)
         with torch.inference_mode():
-            out = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data)[:, 0]
+            out = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data, base)[:, 0]
         return [self._finish(o, f.depth) for o, f in zip(out, frames)]
 
 
@@ -131,8 +138,8 @@ class SSDDLSTMDenoiser(_SSDDBase):
 
         from methods.ssdd.model import level1_depth, level2_step
 
-        depth, rgb = self._tensors([frame])
+        depth, rgb, base = self._tensors([frame])
         with torch.inference_mode():
-            l1 = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data)
+            l1 = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data, base)
             out, state = level2_step(self.runtime["level2"], l1, depth, rgb, self.config.level2.data, state)
         return self._finish(out[0, 0], frame.depth), state

@@ -6,6 +6,8 @@ depth in the code of ``data`` (:func:`methods.nn.normalize.encode_depth`: the ra
 centred coding when ``data.depth_scale_m > 0``); level 2 codes the level-1 prediction with the LQ
 frame's centre, so both inputs share one code. Where the net's config asks for it
 (``model.absolute_depth``), the LQ depth relative to 2 m is fed as well (:func:`absolute_code`).
+With a prefilter (``[level1.prefilter]``, :mod:`methods.ssdd.prefilter`) level 1 also takes the
+filtered LQ depth, coded with the LQ frame's centre, and corrects it instead of the raw depth.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ def _code(data: DataConfig) -> dict:
 
 
 ABSOLUTE_REF_M = 2.0
+PREFILTERED = "prefiltered"   # the batch key (extra layer) of level 1's prefiltered base
 
 
 def absolute_code(net, depth: torch.Tensor) -> torch.Tensor | None:
@@ -34,10 +37,15 @@ def absolute_code(net, depth: torch.Tensor) -> torch.Tensor | None:
     return torch.where(torch.isfinite(depth), depth / ABSOLUTE_REF_M - 1.0, torch.zeros_like(depth))
 
 
-def level1_depth(net: SSDDUNet, depth: torch.Tensor, rgb: torch.Tensor | None, data: DataConfig) -> torch.Tensor:
-    """Level 1 on ``depth`` ``(..., 1, H, W)`` metres (and ``rgb`` ``(..., 3, H, W)`` in [0, 1]) -> metres."""
+def level1_depth(net: SSDDUNet, depth: torch.Tensor, rgb: torch.Tensor | None, data: DataConfig,
+                 base: torch.Tensor | None = None) -> torch.Tensor:
+    """Level 1 on ``depth`` ``(..., 1, H, W)`` metres (and ``rgb`` ``(..., 3, H, W)`` in [0, 1]) -> metres.
+
+    ``base``: the prefiltered LQ depth (same shape, metres; :mod:`methods.ssdd.prefilter`) for a net
+    built with ``base=True``, coded with the LQ frame's centre; None otherwise."""
     x, valid, centre = encode_depth(depth, **_code(data))
-    return decode_depth(net(x, valid, rgb, absolute_code(net, depth)), centre=centre, **_code(data))
+    xb = None if base is None else encode_depth(base, centre=centre, **_code(data))[0]
+    return decode_depth(net(x, valid, rgb, absolute_code(net, depth), xb), centre=centre, **_code(data))
 
 
 def _level2_inputs(net, level1: torch.Tensor, depth: torch.Tensor, data: DataConfig):
@@ -71,9 +79,10 @@ def _mask(batch: dict, holes: bool) -> torch.Tensor:
 
 
 def level1_loss(data: DataConfig, *, holes: bool = False):
-    """Eq. 32 loss of level 1 on a training batch (keys of :mod:`methods.nn.data`)."""
+    """Eq. 32 loss of level 1 on a training batch (keys of :mod:`methods.nn.data`; the prefiltered
+    base, when the net takes one, as the extra layer ``PREFILTERED``)."""
     def loss(net, batch):
-        pred = level1_depth(net, batch["lq_depth"], batch["color"], data)
+        pred = level1_depth(net, batch["lq_depth"], batch["color"], data, batch.get(PREFILTERED))
         return masked_l1(pred, batch["reference"], _mask(batch, holes), batch["valid"])
     return loss
 

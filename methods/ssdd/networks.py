@@ -3,7 +3,9 @@
 Both predict a correction of their first input channel (residual learning) in normalised depth
 units (:mod:`methods.nn.normalize`):
 
-* level 1, :class:`SSDDUNet`: input ``[x_lq, valid_lq?, rgb?, z?]`` -> ``x_lq + UNet(...)``;
+* level 1, :class:`SSDDUNet`: input ``[x_lq, valid_lq?, rgb?, z?]`` -> ``x_lq + UNet(...)``, or with a
+  prefiltered base ``x_b`` (``base=True``, :mod:`methods.ssdd.prefilter`): ``[x_b, x_lq, valid_lq?, rgb?, z?]``
+  -> ``x_b + UNet(...)``;
 * level 2, :class:`SSDDLSTMUNet`: input ``[x_l1, x_lq, valid_lq?, rgb?, z?]`` -> ``x_l1 + UNet(...)``,
   where ``x_l1`` is the level-1 prediction; ConvLSTM cells at the chosen levels (by default the
   bottleneck) carry state from frame to frame of a sequence.
@@ -131,21 +133,30 @@ def _inputs(first: torch.Tensor, others: list[torch.Tensor | None]) -> torch.Ten
 
 
 class SSDDUNet(nn.Module):
-    """Level 1: ``forward(x_lq, valid=None, rgb=None, z=None)`` on ``(..., 1|3, H, W)`` -> normalised depth ``(..., 1, H, W)``."""
+    """Level 1: ``forward(x_lq, valid=None, rgb=None, z=None, x_base=None)`` on ``(..., 1|3, H, W)`` ->
+    normalised depth ``(..., 1, H, W)``.
 
-    def __init__(self, cfg: NetConfig) -> None:
+    ``base=True``: the net also takes ``x_base`` (a prefiltered LQ depth in the same code, required)
+    as its first channel and corrects it instead of ``x_lq``.
+    """
+
+    def __init__(self, cfg: NetConfig, *, base: bool = False) -> None:
         super().__init__()
         self.cfg = cfg
-        self.unet = UNet(1 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels, stem=cfg.stem,
-                         norm=cfg.norm)
+        self.base = bool(base)
+        self.unet = UNet(1 + int(self.base) + cfg.extra_channels(), width=cfg.width, levels=cfg.levels,
+                         stem=cfg.stem, norm=cfg.norm)
 
     def forward(self, x_lq: torch.Tensor, valid: torch.Tensor | None = None, rgb: torch.Tensor | None = None,
-                z: torch.Tensor | None = None) -> torch.Tensor:
-        x = _inputs(x_lq, self.cfg.optional(valid, rgb, z))
+                z: torch.Tensor | None = None, x_base: torch.Tensor | None = None) -> torch.Tensor:
+        if self.base != (x_base is not None):
+            raise ValueError("this level-1 net " + ("needs" if self.base else "takes no") + " prefiltered base x_base")
+        first, others = (x_base, [x_lq]) if self.base else (x_lq, [])
+        x = _inputs(first, others + self.cfg.optional(valid, rgb, z))
         lead = x.shape[:-3]
         flat = x.reshape(-1, *x.shape[-3:])
         res, _ = self.unet.step(flat)
-        return x_lq + res.reshape(*lead, *res.shape[-3:])
+        return first + res.reshape(*lead, *res.shape[-3:])
 
 
 class SSDDLSTMUNet(nn.Module):

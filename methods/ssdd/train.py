@@ -32,8 +32,9 @@ from methods.nn.data import AlignedSamples
 from methods.nn.train import RunContext, Trainer, register_trainer
 from methods.nn.trainer import FitJob, seeded
 from methods.ssdd.config import Level1Config, SSDDConfig
-from methods.ssdd.model import level1_depth, level1_loss, level2_loss
+from methods.ssdd.model import PREFILTERED, level1_depth, level1_loss, level2_loss
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
+from methods.ssdd.prefilter import prefilter_frames
 
 OOF_JSON = "oof.json"
 OOF_PREDICTIONS = "oof_predictions.safetensors"
@@ -59,13 +60,22 @@ def _samples(datasets, data, *, seed: int, train: bool, extra=None) -> AlignedSa
                           roi_crop=data.roi_crop if train else 0.0)
 
 
+def prefiltered(datasets: list[AlignedDataset], cfg: Level1Config) -> dict[str, dict[str, np.ndarray]] | None:
+    """The prefiltered base of every frame as an extra sample layer (``{PREFILTERED: {checksum: (F, H, W)}}``),
+    or None when level 1 has no prefilter."""
+    if not cfg.prefilter.enabled:
+        return None
+    return {PREFILTERED: {ds.checksum: prefilter_frames((ds.lq_depth(i) for i in range(len(ds))), cfg.prefilter)
+                          for ds in datasets}}
+
+
 def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset], validation: list[AlignedDataset],
-                folder: str, name: str) -> SSDDUNet:
+                folder: str, name: str, pre: dict | None) -> SSDDUNet:
     holes = ctx.config.loss_on_holes
-    job = FitJob(name=name, model=seeded(lambda: SSDDUNet(cfg.model), cfg.optim.seed),
+    job = FitJob(name=name, model=seeded(lambda: SSDDUNet(cfg.model, base=cfg.prefilter.enabled), cfg.optim.seed),
                  loss=level1_loss(cfg.data, holes=holes),
-                 train=_samples(train, cfg.data, seed=cfg.optim.seed, train=True),
-                 validation=_samples(validation, cfg.data, seed=cfg.optim.seed, train=False),
+                 train=_samples(train, cfg.data, seed=cfg.optim.seed, train=True, extra=pre),
+                 validation=_samples(validation, cfg.data, seed=cfg.optim.seed, train=False, extra=pre),
                  optim=cfg.optim, folder=ctx.out / folder, num_workers=cfg.data.num_workers,
                  meta={"trained_on": [ds.checksum for ds in train]})
     model = ctx.fit(job).model
@@ -74,10 +84,13 @@ def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset],
 
 
 @torch.no_grad()
-def predict_level1(model: SSDDUNet, ds: AlignedDataset, cfg: Level1Config, *, batch: int = 8) -> np.ndarray:
-    """Level-1 prediction of every frame of ``ds`` (whole frames): ``(F, H, W)`` float32 metres, no holes."""
+def predict_level1(model: SSDDUNet, ds: AlignedDataset, cfg: Level1Config, *, batch: int = 8,
+                   pre: dict | None = None) -> np.ndarray:
+    """Level-1 prediction of every frame of ``ds`` (whole frames): ``(F, H, W)`` float32 metres, no holes.
+    ``pre``: :func:`prefiltered` of a list holding ``ds`` (None: computed here when level 1 has a prefilter)."""
     device = next(model.parameters()).device
     model.eval()
+    base = (pre or prefiltered([ds], cfg) or {}).get(PREFILTERED, {}).get(ds.checksum)
     out = np.empty((len(ds),) + ds.lq_intrinsics.shape, np.float32)
     for s in range(0, len(ds), batch):
         idx = range(s, min(s + batch, len(ds)))
@@ -85,7 +98,8 @@ def predict_level1(model: SSDDUNet, ds: AlignedDataset, cfg: Level1Config, *, ba
         rgb = None
         if cfg.model.use_color:
             rgb = torch.from_numpy(np.stack([_rgb(ds, i) for i in idx])).to(device)
-        out[s:s + len(idx)] = level1_depth(model, depth, rgb, cfg.data)[:, 0].cpu().numpy()
+        b = None if base is None else torch.from_numpy(base[s:s + len(idx), None]).to(device)
+        out[s:s + len(idx)] = level1_depth(model, depth, rgb, cfg.data, b)[:, 0].cpu().numpy()
     return out
 
 
@@ -103,13 +117,15 @@ def _prefixed(model: torch.nn.Module, prefix: str) -> dict:
 def train_unet(ctx: RunContext) -> dict[str, Path]:
     """``ssdd_unet``: level 1 on every training sequence."""
     cfg: SSDDConfig = ctx.config
-    final = _fit_level1(ctx, cfg.level1, ctx.manifest.split("train"), ctx.manifest.split("validation"),
-                        "level1/final", "level 1")
+    train, validation = ctx.manifest.split("train"), ctx.manifest.split("validation")
+    final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1",
+                        prefiltered(train + validation, cfg.level1))
     return {"ssdd_unet": ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))}
 
 
-def out_of_fold(ctx: RunContext, cfg: SSDDConfig) -> tuple[dict[str, np.ndarray], dict]:
-    """Steps 1-2: the OOF level-1 prediction of every training sequence, and the record of who made it."""
+def out_of_fold(ctx: RunContext, cfg: SSDDConfig, pre: dict | None = None) -> tuple[dict[str, np.ndarray], dict]:
+    """Steps 1-2: the OOF level-1 prediction of every training sequence, and the record of who made it
+    (``pre``: :func:`prefiltered` of the training and validation sequences, when level 1 has a prefilter)."""
     train = ctx.manifest.split("train")
     folds = assign_folds(train, cfg.folds, seed=cfg.level1.optim.seed)
     preds: dict[str, np.ndarray] = {}
@@ -118,9 +134,9 @@ def out_of_fold(ctx: RunContext, cfg: SSDDConfig) -> tuple[dict[str, np.ndarray]
         fit_on = [ds for ds, g in zip(train, folds) if g != f]
         held = [ds for ds, g in zip(train, folds) if g == f]
         model = _fit_level1(ctx, cfg.level1, fit_on, ctx.manifest.split("validation"), f"level1/fold{f}",
-                            f"level 1 fold {f + 1}/{cfg.folds}")
+                            f"level 1 fold {f + 1}/{cfg.folds}", pre)
         for ds in held:
-            preds[ds.checksum] = predict_level1(model, ds, cfg.level1)
+            preds[ds.checksum] = predict_level1(model, ds, cfg.level1, pre=pre)
             record["datasets"].append({"name": ds.name, "checksum": ds.checksum, "fold": f,
                                        "model": f"level1/fold{f}",
                                        "model_trained_on": [o.checksum for o in fit_on]})
@@ -131,14 +147,15 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     """``ssdd_lstm``: both levels, level 2 on out-of-fold level-1 predictions."""
     cfg: SSDDConfig = ctx.config
     train, validation = ctx.manifest.split("train"), ctx.manifest.split("validation")
-    oof, record = out_of_fold(ctx, cfg)
+    pre = prefiltered(train + validation, cfg.level1)
+    oof, record = out_of_fold(ctx, cfg, pre)
     if ctx.dist.main:
         atomic_write_json(ctx.out / OOF_JSON, record)
         save_tensors(ctx.out / OOF_PREDICTIONS, {k: torch.from_numpy(v) for k, v in oof.items()}, kind="predictions",
                      meta={"what": "out-of-fold level-1 predictions (metres) by dataset checksum", "oof": record})
-    final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1 final")
+    final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1 final", pre)
     unet_weights = ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))
-    val_preds = {ds.checksum: predict_level1(final, ds, cfg.level1) for ds in validation}
+    val_preds = {ds.checksum: predict_level1(final, ds, cfg.level1, pre=pre) for ds in validation}
     l2 = cfg.level2
     job = FitJob(name="level 2", model=seeded(lambda: SSDDLSTMUNet(l2.model), l2.optim.seed),
                  loss=level2_loss(l2.data, holes=cfg.loss_on_holes),

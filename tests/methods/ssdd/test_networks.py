@@ -6,6 +6,7 @@ from methods.nn.config import DataConfig
 from methods.nn.losses import masked_l1
 from methods.ssdd.model import level1_depth, level2_depth
 from methods.ssdd.networks import NetConfig, SSDDLSTMUNet, SSDDUNet
+from methods.ssdd.prefilter import PrefilterConfig, prefilter_frames
 
 DATA = DataConfig(depth_scale_m=0.1)      # the centred coding of the built-in configs
 
@@ -31,18 +32,24 @@ def _run(net, lq, ref, roi, rgb):
         l1 = torch.nan_to_num(lq, nan=2.0)
         pred = level2_depth(net, l1, lq, rgb, DATA)
     else:
-        pred = level1_depth(net, lq, rgb, DATA)
+        pred = level1_depth(net, lq, rgb, DATA, _base(lq) if net.base else None)
     return masked_l1(pred, ref, roi)
 
 
-@pytest.mark.parametrize("kind", ["unet", "unet_color", "unet_z", "lstm"])
+def _base(lq):
+    """Level 1's bilateral prefilter of every frame of ``lq`` ``(..., 1, H, W)``."""
+    frames = lq.reshape(-1, *lq.shape[-2:]).numpy()
+    return torch.from_numpy(prefilter_frames(frames, PrefilterConfig(kind="bilateral"))).reshape(lq.shape)
+
+
+@pytest.mark.parametrize("kind", ["unet", "unet_color", "unet_z", "unet_prefilter", "lstm"])
 def test_overfits_one_batch_and_gradients_reach_every_parameter(kind):
     torch.manual_seed(0)
     if kind == "lstm":
         net, batch = SSDDLSTMUNet(NetConfig(width=8, levels=3, recurrent=[-1, 0], absolute_depth=True)), _batch(T=2, B=1)
     else:
         net, batch = SSDDUNet(NetConfig(width=8, levels=3, use_color=kind == "unet_color",
-                                        absolute_depth=kind == "unet_z")), _batch()
+                                        absolute_depth=kind == "unet_z"), base=kind == "unet_prefilter"), _batch()
     loss = _run(net, *batch)
     loss.backward()
     for name, p in net.named_parameters():

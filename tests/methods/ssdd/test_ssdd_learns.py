@@ -2,6 +2,7 @@
 for real by ``train_method`` with the ``tiny`` recipe (centred coding, no GroupNorm, ROI-centred crops,
 full-resolution stem) on synthetic sequences, scored on a held-out sequence against its truth."""
 import numpy as np
+import pytest
 
 from align.dataset import AlignedDataset
 from methods.nn.train import train_method
@@ -32,9 +33,16 @@ def _mse(out, truth, ok):
     return float(np.mean((out[ok] - truth[ok]) ** 2))
 
 
-def test_tiny_recipe_ssdd_unet_beats_raw_and_the_bilateral_filter_on_held_out_truth(tmp_path):
+PREFILTER = """
+[level1.prefilter]
+kind = "bilateral"
+"""
+
+
+@pytest.mark.parametrize("prefilter", [False, True], ids=["plain", "bilateral_prefilter"])
+def test_tiny_recipe_ssdd_unet_beats_raw_and_the_bilateral_filter_on_held_out_truth(tmp_path, prefilter):
     manifest = make_manifest(tmp_path / "corpus", SPLITS, frames=8)
-    (tmp_path / "c.toml").write_text(CONFIG)
+    (tmp_path / "c.toml").write_text(CONFIG + (PREFILTER if prefilter else ""))
     train_method("ssdd_unet", dataset=manifest, config=tmp_path / "c.toml", out=tmp_path / "run", device="cpu",
                  progress=False)
     net = get("ssdd_unet", weights=str(tmp_path / "run" / "ssdd_unet.safetensors"))

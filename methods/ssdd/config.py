@@ -9,9 +9,17 @@
     [level1.prefilter] kind = "none" | "bilateral", sigma_spatial, sigma_color, depth_adaptive, radius
                     (level 1 corrects the filtered LQ depth: methods.ssdd.prefilter)
     [level1.optim]  epochs, batch_size, lr, weight_decay, samples_per_epoch, grad_clip, seed
+    [level2]        level1_input = "final" | "fold_mean" (what feeds level 2 at inference, below)
     [level2.model]  ... and recurrent = [-1] (ConvLSTM levels; -1 = bottleneck)
     [level2.data]   ... sequence_length = N (frames per training sequence)
     [level2.optim]  ...
+
+``level2.level1_input``: level 2 trains on out-of-fold level-1 predictions, made by the k fold
+models (each trained on (k-1)/k of the sequences). ``"final"`` (default, the issue's scheme) feeds
+it the final level-1 model (trained on all sequences) at inference; ``"fold_mean"`` feeds it the
+mean of the k fold models' predictions instead, so the inputs at inference come from the same models
+as those it was trained on (stacking); the weights then hold the fold models too (k level-1 passes
+per frame). ``ssdd_unet`` is the final model either way.
 """
 from __future__ import annotations
 
@@ -20,6 +28,10 @@ from dataclasses import dataclass, field
 from methods.nn.config import DataConfig, OptimConfig
 from methods.ssdd.networks import NetConfig
 from methods.ssdd.prefilter import PrefilterConfig
+
+
+LEVEL1_INPUTS = ("final", "fold_mean")
+FOLD_PREFIX = "level1_fold"   # + "<f>/": the fold models in ssdd_lstm's weights with level1_input = "fold_mean"
 
 
 @dataclass
@@ -41,8 +53,11 @@ class Level2Config:
     model: NetConfig = field(default_factory=lambda: NetConfig(recurrent=[-1]))
     data: DataConfig = field(default_factory=lambda: DataConfig(sequence_length=4))
     optim: OptimConfig = field(default_factory=OptimConfig)
+    level1_input: str = "final"
 
     def __post_init__(self) -> None:
+        if self.level1_input not in LEVEL1_INPUTS:
+            raise ValueError(f"level2.level1_input must be one of {', '.join(LEVEL1_INPUTS)}, got {self.level1_input!r}")
         if not self.model.recurrent:
             raise ValueError("level2.model.recurrent must name at least one level (-1 = bottleneck)")
 

@@ -61,16 +61,21 @@ class _SSDDBase(LearnedDenoiser):
 
         from methods.nn.checkpoint import decode_tensors, load_state
         from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
+        from methods.ssdd.config import FOLD_PREFIX
 
         f = decode_tensors(self.weights_bytes(), where=self.weights_path, kind="weights")
         dev = torch.device(resolve_device(self.device))
-        nets = {"level1": SSDDUNet(self.config.level1.model, base=self.config.level1.prefilter.enabled)}
+        level1 = lambda: SSDDUNet(self.config.level1.model, base=self.config.level1.prefilter.enabled)  # noqa: E731
+        nets = {"level1": level1()}
         if self.levels == 2:
             nets["level2"] = SSDDLSTMUNet(self.config.level2.model)
+            if self.config.level2.level1_input == "fold_mean":
+                nets.update({f"{FOLD_PREFIX}{k}": level1() for k in range(self.config.folds)})
         for name, net in nets.items():
             load_state(net, f.prefixed(f"{name}/"), where=self.weights_path)
             net.to(dev).eval()
-        return {"device": dev, **nets}
+        feeders = [n for k, n in nets.items() if k.startswith(FOLD_PREFIX)] or [nets["level1"]]
+        return {"device": dev, "feeders": feeders, **nets}
 
     def prepare(self) -> None:
         self.runtime.update(self._load())
@@ -121,7 +126,8 @@ class SSDDUNetDenoiser(_SSDDBase):
 
 
 class SSDDLSTMDenoiser(_SSDDBase):
-    """SSDD level 2: the LSTM-UNet over the frames of a sequence, fed the level-1 prediction."""
+    """SSDD level 2: the LSTM-UNet over the frames of a sequence, fed the level-1 prediction (of the
+    final level-1 model, or the mean of the fold models' with ``level2.level1_input = "fold_mean"``)."""
 
     name = "ssdd_lstm"
     version = "1"
@@ -140,6 +146,7 @@ class SSDDLSTMDenoiser(_SSDDBase):
 
         depth, rgb, base = self._tensors([frame])
         with torch.inference_mode():
-            l1 = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data, base)
+            l1s = [level1_depth(net, depth, rgb, self.config.level1.data, base) for net in self.runtime["feeders"]]
+            l1 = l1s[0] if len(l1s) == 1 else torch.stack(l1s).mean(dim=0)
             out, state = level2_step(self.runtime["level2"], l1, depth, rgb, self.config.level2.data, state)
         return self._finish(out[0, 0], frame.depth), state

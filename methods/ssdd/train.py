@@ -15,7 +15,8 @@
 the checksums of the sequences that model was trained on; each fold's checkpoint records the same
 list independently (``trained_on``), and ``RUN/oof_predictions.safetensors`` holds the predictions
 level 2 was trained on. Weights: ``RUN/ssdd_unet.safetensors`` (level 1) and
-``RUN/ssdd_lstm.safetensors`` (both levels).
+``RUN/ssdd_lstm.safetensors`` (both levels; with ``level2.level1_input = "fold_mean"`` also the fold
+models, whose mean prediction then feeds level 2, for its validation here and at inference).
 """
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ from methods.nn.checkpoint import save_tensors
 from methods.nn.data import AlignedSamples
 from methods.nn.train import RunContext, Trainer, register_trainer
 from methods.nn.trainer import FitJob, seeded
-from methods.ssdd.config import Level1Config, SSDDConfig
+from methods.ssdd.config import FOLD_PREFIX, Level1Config, SSDDConfig
 from methods.ssdd.model import PREFILTERED, level1_depth, level1_loss, level2_loss
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 from methods.ssdd.prefilter import prefilter_frames
@@ -123,24 +124,28 @@ def train_unet(ctx: RunContext) -> dict[str, Path]:
     return {"ssdd_unet": ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))}
 
 
-def out_of_fold(ctx: RunContext, cfg: SSDDConfig, pre: dict | None = None) -> tuple[dict[str, np.ndarray], dict]:
-    """Steps 1-2: the OOF level-1 prediction of every training sequence, and the record of who made it
-    (``pre``: :func:`prefiltered` of the training and validation sequences, when level 1 has a prefilter)."""
+def out_of_fold(ctx: RunContext, cfg: SSDDConfig,
+                pre: dict | None = None) -> tuple[dict[str, np.ndarray], dict, list[SSDDUNet]]:
+    """Steps 1-2: the OOF level-1 prediction of every training sequence, the record of who made it,
+    and the k fold models (``pre``: :func:`prefiltered` of the training and validation sequences,
+    when level 1 has a prefilter)."""
     train = ctx.manifest.split("train")
     folds = assign_folds(train, cfg.folds, seed=cfg.level1.optim.seed)
     preds: dict[str, np.ndarray] = {}
     record = {"folds": cfg.folds, "datasets": []}
+    models = []
     for f in range(cfg.folds):
         fit_on = [ds for ds, g in zip(train, folds) if g != f]
         held = [ds for ds, g in zip(train, folds) if g == f]
         model = _fit_level1(ctx, cfg.level1, fit_on, ctx.manifest.split("validation"), f"level1/fold{f}",
                             f"level 1 fold {f + 1}/{cfg.folds}", pre)
+        models.append(model)
         for ds in held:
             preds[ds.checksum] = predict_level1(model, ds, cfg.level1, pre=pre)
             record["datasets"].append({"name": ds.name, "checksum": ds.checksum, "fold": f,
                                        "model": f"level1/fold{f}",
                                        "model_trained_on": [o.checksum for o in fit_on]})
-    return preds, record
+    return preds, record, models
 
 
 def train_lstm(ctx: RunContext) -> dict[str, Path]:
@@ -148,15 +153,17 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     cfg: SSDDConfig = ctx.config
     train, validation = ctx.manifest.split("train"), ctx.manifest.split("validation")
     pre = prefiltered(train + validation, cfg.level1)
-    oof, record = out_of_fold(ctx, cfg, pre)
+    oof, record, fold_models = out_of_fold(ctx, cfg, pre)
     if ctx.dist.main:
         atomic_write_json(ctx.out / OOF_JSON, record)
         save_tensors(ctx.out / OOF_PREDICTIONS, {k: torch.from_numpy(v) for k, v in oof.items()}, kind="predictions",
                      meta={"what": "out-of-fold level-1 predictions (metres) by dataset checksum", "oof": record})
     final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1 final", pre)
     unet_weights = ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))
-    val_preds = {ds.checksum: predict_level1(final, ds, cfg.level1, pre=pre) for ds in validation}
     l2 = cfg.level2
+    feeders = fold_models if l2.level1_input == "fold_mean" else [final]   # level 2's level 1 at inference
+    val_preds = {ds.checksum: np.mean([predict_level1(m, ds, cfg.level1, pre=pre) for m in feeders], axis=0)
+                 for ds in validation}
     job = FitJob(name="level 2", model=seeded(lambda: SSDDLSTMUNet(l2.model), l2.optim.seed),
                  loss=level2_loss(l2.data, holes=cfg.loss_on_holes),
                  train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof}),
@@ -166,6 +173,9 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
                  meta={"trained_on": [ds.checksum for ds in train], "oof": record})
     level2 = ctx.fit(job).model
     tensors = {**_prefixed(final, "level1/"), **_prefixed(level2, "level2/")}
+    if l2.level1_input == "fold_mean":
+        for f, m in enumerate(fold_models):
+            tensors.update(_prefixed(m, f"{FOLD_PREFIX}{f}/"))
     lstm_weights = ctx.save_weights("ssdd_lstm", tensors, oof=record)
     return {"ssdd_unet": unet_weights, "ssdd_lstm": lstm_weights}
 

@@ -102,3 +102,45 @@ def test_bench_scores_learned_columns_and_refuses_training_frames(run, cli, tmp_
     assert r.returncode == 0, r.stderr
     board = (tmp_path / "allowed" / "leaderboard.md").read_text()
     assert "WARNING" in board and "allow_train_frames=True" in board
+
+
+def test_fold_mean_feeds_level2_the_mean_of_the_fold_models(tmp_path):
+    """``level2.level1_input = "fold_mean"``: the weights carry the k fold models exactly as trained
+    (their checkpoints), and ``ssdd_lstm`` feeds level 2 the mean of their predictions, not the final
+    model's: checked against level 2 run by hand on the fold checkpoints' mean."""
+    from methods.base import FrameInput
+    from methods.ssdd.model import level1_depth, level2_step
+    from methods.ssdd.networks import SSDDLSTMUNet
+
+    manifest = make_manifest(tmp_path / "corpus", SPLITS, frames=4)
+    config = write_test_config(tmp_path / "c.toml", epochs=1)
+    config.write_text(config.read_text() + '\n[level2]\nlevel1_input = "fold_mean"\n')
+    train_method("ssdd_lstm", dataset=manifest, config=config, out=tmp_path / "run", device="cpu", progress=False)
+    weights = load_tensors(tmp_path / "run" / "ssdd_lstm.safetensors", kind="weights")
+    cfg = from_dict(SSDDConfig, weights.meta["config"], where="run")
+    assert cfg.level2.level1_input == "fold_mean"
+    depth = AlignedDataset(tmp_path / "corpus" / "f").lq_depth(0)
+    d = torch.from_numpy(depth)[None, None]
+    preds = []
+    for f in range(cfg.folds):
+        ckpt = load_tensors(tmp_path / "run" / "level1" / f"fold{f}" / "checkpoint.safetensors", kind="checkpoint")
+        stored = weights.prefixed(f"level1_fold{f}/")
+        assert stored.keys() == ckpt.prefixed("model/").keys()
+        assert all(torch.equal(stored[k], v) for k, v in ckpt.prefixed("model/").items())
+        net = SSDDUNet(cfg.level1.model)
+        load_state(net, ckpt.prefixed("model/"), where="fold")
+        with torch.no_grad():
+            preds.append(level1_depth(net.eval(), d, None, cfg.level1.data))
+    level2 = SSDDLSTMUNet(cfg.level2.model)
+    load_state(level2, weights.prefixed("level2/"), where="level2")
+    with torch.no_grad():
+        expect, _ = level2_step(level2.eval(), torch.stack(preds).mean(0), d, None, cfg.level2.data, None)
+        final = SSDDUNet(cfg.level1.model)
+        load_state(final, weights.prefixed("level1/"), where="final")
+        other, _ = level2_step(level2, level1_depth(final.eval(), d, None, cfg.level1.data), d, None,
+                               cfg.level2.data, None)
+    lstm = get("ssdd_lstm", weights=str(tmp_path / "run" / "ssdd_lstm.safetensors"))
+    out, _ = lstm.denoise_step(FrameInput(0, depth), lstm.start_sequence())
+    ok = np.isfinite(depth)
+    np.testing.assert_allclose(out[ok], expect[0, 0].numpy()[ok], rtol=0, atol=1e-5)
+    assert np.abs(out[ok] - other[0, 0].numpy()[ok]).max() > 1e-5      # not what the final model would feed

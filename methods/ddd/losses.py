@@ -20,6 +20,14 @@ bool. Sums over pixels in the paper are means over the mask here (weights indepe
   over valid pixels with at least one valid neighbour, subtracted from 1. Normals from four
   neighbours (:mod:`methods.nn.geometry`).
 * eq. 22 ``L = l1 L_ph + l2 L_depth + l3 L_surface``, ``(0.85, 0.1, 0.05)``.
+
+Foreground weighting (an option, not in the paper; off by default): with a foreground mask ``F`` per
+view and a share ``w`` in ``(0, 1]``, every per-pixel mean above becomes
+``w mean_{mask & F} + (1 - w) mean_{mask & ~F}`` (:func:`split_mean`; the plain mean where the batch
+has no foreground or no background pixel). In the paper every pixel counts the same, so a scene whose
+people cover a few percent of the frame trains a filter for its walls and floor; the released code
+instead drops every pixel beyond a depth threshold (3 m) from the masks, which keeps the people of
+its capture space (``max_depth_m`` in :mod:`methods.ddd.model`).
 """
 from __future__ import annotations
 
@@ -39,6 +47,19 @@ def masked_mean(x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     return (x * m).sum() / m.sum().clamp_min(1.0)
 
 
+def split_mean(x: torch.Tensor, mask: torch.Tensor, foreground: torch.Tensor | None = None, *,
+               weight: float = 0.0) -> torch.Tensor:
+    """``weight * mean(x | mask & foreground) + (1 - weight) * mean(x | mask & ~foreground)``; the
+    plain :func:`masked_mean` when ``foreground`` is None, ``weight`` is 0, or either part is empty."""
+    if foreground is None or weight == 0.0:
+        return masked_mean(x, mask)
+    fg = mask & foreground
+    bg = mask & ~foreground
+    if not bool(fg.any()) or not bool(bg.any()):
+        return masked_mean(x, mask)
+    return weight * masked_mean(x, fg) + (1.0 - weight) * masked_mean(x, bg)
+
+
 def charbonnier(x: torch.Tensor, *, gamma: float = 1e-3) -> torch.Tensor:
     """``sqrt(x^2 + gamma^2) - gamma``."""
     return torch.sqrt(x * x + gamma * gamma) - gamma
@@ -51,13 +72,15 @@ def tukey(x: torch.Tensor, *, c: float = TUKEY_C) -> torch.Tensor:
 
 
 def photometric_loss(rendered: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, *, alpha: float = 0.85,
-                     gamma: float = 1e-3, ssim_radius: int | None = None) -> tuple[torch.Tensor, dict]:
-    """Eq. 23-25 over ``mask``; returns ``(L_ph, {"col": .., "str": ..})``."""
+                     gamma: float = 1e-3, ssim_radius: int | None = None, foreground: torch.Tensor | None = None,
+                     foreground_weight: float = 0.0) -> tuple[torch.Tensor, dict]:
+    """Eq. 23-25 over ``mask`` (:func:`split_mean` with ``foreground``); returns ``(L_ph, {"col": .., "str": ..})``."""
     m = mask.to(target.dtype)
     t, r = target * m, rendered * m
-    col = masked_mean(charbonnier((t - r).abs().sum(dim=1, keepdim=True), gamma=gamma), mask)
+    fw = dict(foreground=foreground, weight=foreground_weight)
+    col = split_mean(charbonnier((t - r).abs().sum(dim=1, keepdim=True), gamma=gamma), mask, **fw)
     s = ssim_map(r, t, radius=ssim_radius).mean(dim=1, keepdim=True)
-    struct = 0.5 * masked_mean(tukey(1.0 - s), mask)
+    struct = 0.5 * split_mean(tukey(1.0 - s), mask, **fw)
     return (1 - alpha) * col + alpha * struct, {"col": col, "str": struct}
 
 
@@ -77,18 +100,20 @@ def berhu(r: torch.Tensor, c: torch.Tensor | float) -> torch.Tensor:
     return torch.where(a <= c, a, (r * r + c * c) / (2 * c))
 
 
-def depth_prior_loss(pred: torch.Tensor, observed: torch.Tensor, mask: torch.Tensor, *, c_over: str = "valid") -> torch.Tensor:
-    """Eq. 26 averaged over ``mask``: BerHu of ``M (D - D~)`` with the batch threshold."""
+def depth_prior_loss(pred: torch.Tensor, observed: torch.Tensor, mask: torch.Tensor, *, c_over: str = "valid",
+                     foreground: torch.Tensor | None = None, foreground_weight: float = 0.0) -> torch.Tensor:
+    """Eq. 26 averaged over ``mask`` (:func:`split_mean`): BerHu of ``M (D - D~)`` with the batch threshold."""
     r = torch.where(mask, observed - pred, torch.zeros_like(pred)) if c_over == "valid" else \
         observed * mask.to(pred.dtype) - pred
-    return masked_mean(berhu(r, berhu_threshold(r, mask, over=c_over)), mask)
+    return split_mean(berhu(r, berhu_threshold(r, mask, over=c_over)), mask, foreground, weight=foreground_weight)
 
 
 _N8 = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dy, dx) != (0, 0)]
 
 
-def surface_prior_loss(normals: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
-    """Eq. 27: ``1 -`` mean over valid pixels of the mean ``|cos|`` to their valid 8 neighbours."""
+def surface_prior_loss(normals: torch.Tensor, valid: torch.Tensor, *, foreground: torch.Tensor | None = None,
+                       foreground_weight: float = 0.0) -> torch.Tensor:
+    """Eq. 27: ``1 -`` mean (:func:`split_mean`) over valid pixels of the mean ``|cos|`` to their valid 8 neighbours."""
     n = torch.where(valid, normals, torch.zeros_like(normals))
     h, w = n.shape[-2:]
     npad = F.pad(n, (1, 1, 1, 1))
@@ -100,7 +125,7 @@ def surface_prior_loss(normals: torch.Tensor, valid: torch.Tensor) -> torch.Tens
         cos_sum = cos_sum + (n * nb).sum(dim=1, keepdim=True).abs()
         count = count + vpad[:, :, 1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
     has = valid & (count > 0)
-    return 1.0 - masked_mean(cos_sum / count.clamp_min(1.0), has)
+    return 1.0 - split_mean(cos_sum / count.clamp_min(1.0), has, foreground, weight=foreground_weight)
 
 
 @dataclass(frozen=True)
@@ -117,22 +142,30 @@ class DDDLoss(nn.Module):
     """Eq. 22 for one batch of views (means over views); ``forward`` returns ``(total, {term: value})``.
 
     Options (keyword-only): ``weights``, ``gamma`` (Charbonnier), ``c_over`` (BerHu threshold over
-    ``"valid"`` pixels, the paper, or ``"all"``, the released code), ``ssim_radius`` (None: 11x11).
+    ``"valid"`` pixels, the paper, or ``"all"``, the released code), ``ssim_radius`` (None: 11x11),
+    ``foreground_weight`` (0: the paper; ``w``: the foreground's share of every mean, :func:`split_mean`,
+    with the per-view masks passed to ``forward`` as ``foreground``).
     """
 
     def __init__(self, *, weights: DDDWeights | None = None, gamma: float = 1e-3, c_over: str = "valid",
-                 ssim_radius: int | None = None) -> None:
+                 ssim_radius: int | None = None, foreground_weight: float = 0.0) -> None:
         super().__init__()
         self.w = weights or DDDWeights()
         self.gamma, self.c_over, self.ssim_radius = gamma, c_over, ssim_radius
+        self.foreground_weight = foreground_weight
 
     def forward(self, *, rendered: list[torch.Tensor], targets: list[torch.Tensor], photo_masks: list[torch.Tensor],
                 preds: list[torch.Tensor], observed: list[torch.Tensor], valid: list[torch.Tensor],
-                normals: list[tuple[torch.Tensor, torch.Tensor]]) -> tuple[torch.Tensor, dict]:
+                normals: list[tuple[torch.Tensor, torch.Tensor]],
+                foreground: list[torch.Tensor] | None = None) -> tuple[torch.Tensor, dict]:
         v = len(preds)
-        ph = sum(photometric_loss(r, t, m, alpha=self.w.alpha, gamma=self.gamma, ssim_radius=self.ssim_radius)[0]
-                 for r, t, m in zip(rendered, targets, photo_masks)) / v
-        dp = sum(depth_prior_loss(p, o, m, c_over=self.c_over) for p, o, m in zip(preds, observed, valid)) / v
-        sf = sum(surface_prior_loss(n, ok) for n, ok in normals) / v
+        fgs = foreground or [None] * v
+        fw = self.foreground_weight
+        ph = sum(photometric_loss(r, t, m, alpha=self.w.alpha, gamma=self.gamma, ssim_radius=self.ssim_radius,
+                                  foreground=f, foreground_weight=fw)[0]
+                 for r, t, m, f in zip(rendered, targets, photo_masks, fgs)) / v
+        dp = sum(depth_prior_loss(p, o, m, c_over=self.c_over, foreground=f, foreground_weight=fw)
+                 for p, o, m, f in zip(preds, observed, valid, fgs)) / v
+        sf = sum(surface_prior_loss(n, ok, foreground=f, foreground_weight=fw) for (n, ok), f in zip(normals, fgs)) / v
         total = self.w.photometric * ph + self.w.depth * dp + self.w.surface * sf
         return total, {"photometric": float(ph.detach()), "depth": float(dp.detach()), "surface": float(sf.detach())}

@@ -22,23 +22,28 @@ from methods.nn.geometry import normals_from_depth
 @dataclass
 class ModelConfig:
     """``width``: first channel step (8 -> 16 -> 32 -> 64 -> 128); ``residual``: add the input depth;
-    ``input_scale_m``: centred input coding (0: metres, as released; see :mod:`methods.ddd.net`)."""
+    ``input_scale_m``: centred input coding (0: metres, as released; see :mod:`methods.ddd.net`);
+    ``highpass_px``: keep only the correction's high frequencies (0: off, the paper; :mod:`methods.ddd.net`)."""
 
     width: int = 8
     residual: bool = True
     input_scale_m: float = 0.0
+    highpass_px: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.width < 1 or self.input_scale_m < 0 or (self.input_scale_m and not self.residual):
-            raise ValueError(f"model.width must be >= 1 and model.input_scale_m >= 0 (with residual = true), "
-                             f"got {self.width}, {self.input_scale_m}")
+        if self.width < 1 or min(self.input_scale_m, self.highpass_px) < 0 or \
+                ((self.input_scale_m or self.highpass_px) and not self.residual):
+            raise ValueError(f"model.width must be >= 1, model.input_scale_m and model.highpass_px >= 0 (with "
+                             f"residual = true), got {self.width}, {self.input_scale_m}, {self.highpass_px}")
 
 
 @dataclass
 class LossConfig:
     """Eq. 22-27: weights (sum 1), ``alpha``, Charbonnier ``gamma``, BerHu ``c_over`` (``valid``:
     the paper; ``all``: the released code), SSIM window radius (0: 11x11 Gaussian; released: 2),
-    splatting ``z_max_m`` of the weight ``exp(-2 z / z_max)``."""
+    splatting ``z_max_m`` of the weight ``exp(-2 z / z_max)``; ``foreground_weight`` (0: the paper, every
+    pixel alike; ``w`` in (0, 1]: each view's own foreground, :mod:`methods.ddd.multiview`, carries the
+    share ``w`` of every mean of eq. 23-27, :func:`methods.ddd.losses.split_mean`)."""
 
     photometric: float = 0.85
     depth: float = 0.1
@@ -48,8 +53,11 @@ class LossConfig:
     c_over: str = "valid"
     ssim_radius: int = 0
     z_max_m: float = 6.0
+    foreground_weight: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0 <= self.foreground_weight <= 1:
+            raise ValueError(f"loss.foreground_weight must be in [0, 1], got {self.foreground_weight}")
         if self.c_over not in ("valid", "all"):
             raise ValueError(f"loss.c_over must be 'valid' or 'all', got {self.c_over!r}")
         if min(self.photometric, self.depth, self.surface) < 0 or not 0 <= self.alpha <= 1 or self.z_max_m <= 0:
@@ -57,11 +65,13 @@ class LossConfig:
 
     def module(self) -> DDDLoss:
         w = DDDWeights(photometric=self.photometric, depth=self.depth, surface=self.surface, alpha=self.alpha)
-        return DDDLoss(weights=w, gamma=self.gamma, c_over=self.c_over, ssim_radius=self.ssim_radius or None)
+        return DDDLoss(weights=w, gamma=self.gamma, c_over=self.c_over, ssim_radius=self.ssim_radius or None,
+                       foreground_weight=self.foreground_weight)
 
 
 def build(model: ModelConfig) -> DDDNet:
-    return DDDNet(width=model.width, residual=model.residual, input_scale_m=model.input_scale_m)
+    return DDDNet(width=model.width, residual=model.residual, input_scale_m=model.input_scale_m,
+                  highpass_px=model.highpass_px)
 
 
 def multiview_loss(net: DDDNet, batch: dict, cfg: LossConfig, module: DDDLoss) -> tuple[torch.Tensor, dict]:
@@ -79,8 +89,10 @@ def multiview_loss(net: DDDNet, batch: dict, cfg: LossConfig, module: DDDLoss) -
         targets.append(color[:, t])
         photo_masks.append(valid[:, t] & (acc > 1e-6))
         normals.append(normals_from_depth(pred[:, t], cam[:, t], valid[:, t]))
+    fg = batch.get("foreground")
     return module(rendered=rendered, targets=targets, photo_masks=photo_masks, preds=[pred[:, s] for s in range(v)],
-                  observed=[depth[:, s] for s in range(v)], valid=[valid[:, s] for s in range(v)], normals=normals)
+                  observed=[depth[:, s] for s in range(v)], valid=[valid[:, s] for s in range(v)], normals=normals,
+                  foreground=None if fg is None else [fg[:, s] > 0.5 for s in range(v)])
 
 
 def batch_loss(cfg: LossConfig):

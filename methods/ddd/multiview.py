@@ -17,7 +17,16 @@ the intrinsics scaled to match):
 ``color``   (V, 3, h, w)    the view's colour registered to its depth image, RGB in [0, 1]
 ``camera``  (V, 4)          ``fx, fy, cx, cy`` of the depth image, pixels
 ``T_rig``   (V, 4, 4)       ``T_rig_view``: view's depth camera -> rig frame, metres
+``foreground``  (V, 1, h, w)  only with ``foreground=True``: 1 where the view's depth is clearly in
+                            front of that view's own background (see below)
 ==========  ==============  ===============================================================
+
+``foreground=True`` (the ``loss.foreground_weight`` option of :mod:`methods.ddd.model`): per view,
+the background is a high percentile of that view's own depth over (up to) 40 frames of its session
+(:func:`align.roi.background_depth`), and the foreground of a frame its pixels clearly in front of it
+(:func:`align.roi.foreground_mask`, the same rule as the alignment's region of interest M_r, but from
+the view's own LQ depth, at the training resolution). Moving people and balloons are found; a
+person who stands still for most of the session is background.
 
 Only the views' own measurements are read: never ``truth_depth``, and not the HQ reference
 (DDD is self-supervised; the reference only served the calibration).
@@ -32,11 +41,13 @@ import torch
 from torch.utils.data import Dataset
 
 from align.dataset import AlignedDataset
+from align.roi import background_depth, foreground_mask
 from capture.camera import Transform
 from depthbench.fsutil import read_json
 from methods.errors import TrainingError
 
 RIG_JSON = "rig.json"
+BACKGROUND_FRAMES = 40
 
 
 @dataclass
@@ -95,12 +106,15 @@ def downsample(depth: np.ndarray, color: np.ndarray, f: int) -> tuple[np.ndarray
 
 
 class MultiViewSamples(Dataset):
-    """Simultaneous frames of calibrated views (see the module docstring); ``downsample`` 1, 2 or 4."""
+    """Simultaneous frames of calibrated views (see the module docstring); ``downsample`` 1, 2 or 4;
+    ``foreground``: add each view's own foreground mask."""
 
-    def __init__(self, groups: list[RigGroup], *, downsample: int = 1, preload: bool = True) -> None:
+    def __init__(self, groups: list[RigGroup], *, downsample: int = 1, preload: bool = True,
+                 foreground: bool = False) -> None:
         if downsample not in (1, 2, 4):
             raise TrainingError(f"downsample must be 1, 2 or 4, got {downsample}")
-        self.groups, self.downsample, self.preload = groups, downsample, preload
+        self.groups, self.downsample, self.preload, self.foreground = groups, downsample, preload, foreground
+        self._backgrounds: dict[tuple[int, int], np.ndarray] = {}
         self.items = [(g, k) for g in range(len(groups)) for k in range(len(groups[g].rows))]
         if not self.items:
             raise TrainingError("no simultaneous multi-view frames to train on")
@@ -124,6 +138,15 @@ class MultiViewSamples(Dataset):
             cam = np.array([K.fx / f, K.fy / f, (K.cx - (f - 1) / 2) / f, (K.cy - (f - 1) / 2) / f], np.float32)
         return depth, color, cam
 
+    def _background(self, g: int, v: int) -> np.ndarray:
+        """View ``v`` of group ``g``: its background depth from its own frames (module docstring)."""
+        if (g, v) not in self._backgrounds:
+            group = self.groups[g]
+            rows = [r[v] for r in group.rows]
+            pick = np.unique(np.linspace(0, len(rows) - 1, min(BACKGROUND_FRAMES, len(rows))).round().astype(int))
+            self._backgrounds[(g, v)] = background_depth(np.stack([self._view(group.views[v], rows[i])[0] for i in pick]))
+        return self._backgrounds[(g, v)]
+
     def __getitem__(self, k: int) -> dict[str, torch.Tensor]:
         if k in self._cache:
             return self._cache[k]
@@ -137,6 +160,11 @@ class MultiViewSamples(Dataset):
                "color": torch.from_numpy(np.stack([v[1] for v in views]).transpose(0, 3, 1, 2).copy()),
                "camera": torch.from_numpy(np.stack([v[2] for v in views])),
                "T_rig": torch.from_numpy(np.stack(group.T_rig))}
+        if self.foreground:
+            area = max(1, 100 // self.downsample ** 2)   # the alignment's 100 px at full resolution
+            fg = np.stack([foreground_mask(v[0], self._background(g, i), min_area_px=area)
+                           for i, v in enumerate(views)])[:, None]
+            out["foreground"] = torch.from_numpy(fg.astype(np.float32))
         if self.preload:
             self._cache[k] = out
         return out

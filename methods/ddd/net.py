@@ -23,6 +23,14 @@ short CPU trainings need. Depth in and out is metres.
 ``(D - mean) / input_scale_m`` over the frame's measured pixels, and scales the residual back by
 ``input_scale_m`` (needs ``residual``): the noise, centimetres on a depth of metres, is then not a 1 %
 ripple on a large offset (the ``tiny`` config: 0.1 m).
+
+``highpass_px`` (0: off, the paper) keeps only the high frequencies of the network's correction: the
+correction ``c`` (output minus input on measured pixels) becomes ``c - G(c)``, ``G`` the hole-aware
+Gaussian mean over measured pixels with that sigma in pixels (:func:`methods.ddd.warmup.smoothed_input`).
+A denoiser removes zero-mean noise; it has no business moving a surface by a smooth offset, which is
+the cheap direction eq. 22's splatting and surface terms offer the small ``tiny`` network (measured:
+people pulled 4-11 mm towards the camera). Needs ``residual``; the sigma is in pixels of the image the
+network runs on (trained at half resolution and run at full, it is twice as wide in the scene).
 """
 from __future__ import annotations
 
@@ -31,6 +39,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from methods.ddd.partial_conv import PartialBlock, PartialResidual
+from methods.ddd.warmup import smoothed_input
 
 
 class _Up(nn.Module):
@@ -51,12 +60,14 @@ class _Up(nn.Module):
 class DDDNet(nn.Module):
     """``forward(depth, mask)``: depth ``(B, 1, H, W)`` metres (0 at holes), mask ``(B, 1, H, W)`` -> depth."""
 
-    def __init__(self, *, width: int = 8, residual: bool = True, input_scale_m: float | None = None) -> None:
+    def __init__(self, *, width: int = 8, residual: bool = True, input_scale_m: float | None = None,
+                 highpass_px: float | None = None) -> None:
         super().__init__()
         c = [width * 2 ** i for i in range(5)]  # 8, 16, 32, 64, 128
-        if input_scale_m and not residual:
-            raise ValueError("input_scale_m needs residual=True")
+        if (input_scale_m or highpass_px) and not residual:
+            raise ValueError("input_scale_m and highpass_px need residual=True")
         self.residual, self.input_scale_m = residual, float(input_scale_m or 0.0)
+        self.highpass_px = float(highpass_px or 0.0)
         self.e1 = nn.ModuleList([PartialBlock(1, c[0], 7), PartialBlock(c[0], c[1], 5)])
         self.e2 = nn.ModuleList([PartialBlock(c[1], c[2], stride=2), PartialBlock(c[2], c[2])])
         self.e3 = nn.ModuleList([PartialBlock(c[2], c[3], stride=2), PartialBlock(c[3], c[3])])
@@ -78,11 +89,15 @@ class DDDNet(nn.Module):
 
     def forward(self, depth: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         mask = mask.to(depth.dtype)
-        if not self.input_scale_m:
+        if not (self.input_scale_m or self.highpass_px):
             return self._forward(depth, mask)
-        s = self.input_scale_m
-        mean = (depth * mask).sum((1, 2, 3), keepdim=True) / mask.sum((1, 2, 3), keepdim=True).clamp_min(1.0)
-        return depth * mask + s * self._forward((depth - mean) / s * mask, mask, residual=False)
+        s = self.input_scale_m or 1.0
+        mean = (depth * mask).sum((1, 2, 3), keepdim=True) / mask.sum((1, 2, 3), keepdim=True).clamp_min(1.0) \
+            if self.input_scale_m else 0.0
+        correction = self._forward((depth - mean) / s * mask, mask, residual=False)
+        if self.highpass_px:
+            correction = correction - smoothed_input(correction, mask, sigma_px=self.highpass_px)
+        return depth * mask + s * correction
 
     def _forward(self, depth: torch.Tensor, mask: torch.Tensor, *, residual: bool | None = None) -> torch.Tensor:
         h, w = depth.shape[-2:]

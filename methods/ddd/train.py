@@ -50,7 +50,8 @@ class DDDConfig:
 def _samples(datasets, cfg: DDDConfig):
     if not datasets:
         return None
-    return MultiViewSamples(rig_groups(datasets), downsample=cfg.data.downsample, preload=cfg.data.preload)
+    return MultiViewSamples(rig_groups(datasets), downsample=cfg.data.downsample, preload=cfg.data.preload,
+                            foreground=cfg.loss.foreground_weight > 0)
 
 
 def _views(samples: MultiViewSamples) -> list:

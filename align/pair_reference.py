@@ -3,7 +3,9 @@
 An HQ depth frame becomes the LQ frame's reference in three steps, always in this order:
 
 1. the warp onto the LQ image (:class:`align.warp.DepthWarper`), with the edge rule's reach past a
-   surface's last sample (:mod:`align.reference_edges`: 0 for the ``strict`` rule, the default);
+   surface's last sample (:mod:`align.reference_edges`: 0 for the ``strict`` rule, the default;
+   the ``mixed`` rule warps without the HQ's mixed samples and masks what they hide,
+   :meth:`align.reference_edges.EdgeRule.warp`);
 2. when the LQ frame is exposed apart from its HQ frame, the reference carried to the LQ instant
    from the two HQ frames around it (:mod:`align.motion`);
 3. the edge rule's mask (far side of reference edges) on the result.
@@ -70,13 +72,26 @@ class PairReferences:
                  options: ReferenceOptions | None = None) -> None:
         self.options = options or ReferenceOptions()
         self.rule = EdgeRule.named(self.options.reference_edges, edge_rel=self.options.edge_rel)
-        warper = DepthWarper(K_hq, K_lq, T_lq_hq, edge_rel=self.options.edge_rel, edge_reach=self.rule.edge_reach)
-        self.motion = MotionReference(lambda i: warper(read_hq(i)), t_hq_us, enabled=self.options.motion,
+        self._warper = DepthWarper(K_hq, K_lq, T_lq_hq, edge_rel=self.options.edge_rel, edge_reach=self.rule.edge_reach)
+        self._read_hq = read_hq
+        self._frame_masks: dict[int, np.ndarray] = {}  # what the rule masked at the warp, per HQ frame
+        self.motion = MotionReference(self._warp, t_hq_us, enabled=self.options.motion,
                                       min_dt_us=1000 * self.options.motion_min_dt_ms)
+
+    def _warp(self, i: int) -> np.ndarray:
+        depth, mask = self.rule.warp(self._warper, self._read_hq(i))
+        if mask is not None:
+            if len(self._frame_masks) >= 4:
+                self._frame_masks.pop(next(iter(self._frame_masks)))
+            self._frame_masks[i] = mask
+        return depth
 
     def __call__(self, i: int, dt_us: float) -> PairReference:
         """The reference of HQ frame ``i`` for the LQ frame exposed ``dt_us`` after it (µs, on the HQ clock:
         ``t_lq - (t_hq + shift)``)."""
         ref, pm = self.motion(int(i), float(dt_us))
         depth, mask = self.rule.apply(ref)
+        at_warp = self._frame_masks.get(int(i))
+        if at_warp is not None:  # the rule's mask at the warp, where the pair's reference has no depth
+            mask = mask | (at_warp & ~np.isfinite(depth))
         return PairReference(depth=depth, motion=pm, edge_mask=mask)

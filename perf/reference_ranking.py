@@ -1,0 +1,84 @@
+"""Does the leaderboard against the HQ reference rank methods as the truth does, and if not, why?
+
+Run:  .venv/bin/python perf/reference_ranking.py ALIGNED [--methods raw,bf,rgf] [--frames N]
+
+ALIGNED is an aligned dataset of a simulated session (with its ``truth_depth`` layer, e.g. the
+demo's ``aligned/``). Each method runs on the LQ frames and is scored, per frame and inside the
+dataset's ROI as ``bench run`` scores it (:func:`bench.metrics.pixel_errors`), three ways:
+
+* against the HQ reference (the leaderboard's first table);
+* against the truth (its second table);
+* against the truth **on the reference's pixels only** (pixels where the reference has depth).
+
+For every pair of methods it prints the mean over frames of the per-frame difference in MSE and
+RMSE, with a 95 % bootstrap interval over frames (2000 resamples), in each of the three scorings.
+Where the reference and the truth disagree on a pair's order but the truth on the reference's pixels
+agrees with the reference, the reference's values are not to blame: the pixels it leaves out (edges,
+where the HQ sensor cannot say which surface is there) are where the two methods differ. Issue 12's
+demo, BF against RGF, is such a pair (the closing note of session 5).
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+
+import numpy as np
+
+from align.dataset import AlignedDataset
+from bench.metrics import pixel_errors
+from methods.registry import get
+
+SCORINGS = ("reference", "truth", "truth on reference pixels")
+
+
+def _scores(ds: AlignedDataset, methods: list[str], frames: list[int]) -> dict:
+    """method -> scoring -> (n_frames, 2) array of (MSE mm², RMSE mm)."""
+    runners = {m: get(m) for m in methods}
+    out = {m: {s: [] for s in SCORINGS} for m in methods}
+    for i in frames:
+        f = ds.frame(i)
+        refs = {"reference": f.reference, "truth": f.truth,
+                "truth on reference pixels": np.where(np.isfinite(f.reference), f.truth, np.float32(np.nan))}
+        for m, r in runners.items():
+            pred = r.denoise(f.lq_depth, f.lq_color, camera=ds.lq_intrinsics)
+            for s, ref in refs.items():
+                e = pixel_errors(pred, ref, f.roi)
+                out[m][s].append((e["mse_mm2"], e["rmse_mm"]))
+    return {m: {s: np.array(v) for s, v in d.items()} for m, d in out.items()}
+
+
+def _interval(x: np.ndarray, rng: np.random.Generator) -> str:
+    boot = x[rng.integers(0, x.size, (2000, x.size))].mean(axis=1)
+    lo, hi = np.percentile(boot, [2.5, 97.5])
+    return f"{x.mean():+8.2f} [{lo:+.2f}, {hi:+.2f}]"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("aligned", help="aligned dataset of a simulated session (with truth_depth)")
+    ap.add_argument("--methods", default="raw,bf,rgf", help="comma-separated methods (default: %(default)s)")
+    ap.add_argument("--frames", type=int, default=0, help="score every k-th frame so that about N are used (0: all)")
+    args = ap.parse_args()
+    ds = AlignedDataset(args.aligned)
+    n = len(ds)
+    frames = list(range(n)) if args.frames <= 0 else list(range(0, n, max(1, n // args.frames)))
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    sc = _scores(ds, methods, frames)
+    print(f"{ds.name}: {len(frames)} frames; mean over frames (MSE mm² / RMSE mm)")
+    for s in SCORINGS:
+        print(f"  against {s:26s} " + "  ".join(f"{m} {sc[m][s][:, 0].mean():8.1f} / {sc[m][s][:, 1].mean():6.2f}"
+                                                 for m in methods))
+    rng = np.random.default_rng(0)
+    print("paired differences, mean over frames [95 % bootstrap]; order: '<' first method better")
+    for a, b in itertools.combinations(methods, 2):
+        for k, metric in enumerate(("MSE", "RMSE")):
+            cells = []
+            for s in SCORINGS:
+                d = sc[a][s][:, k] - sc[b][s][:, k]
+                d = d[np.isfinite(d)]
+                cells.append(f"{s}: {_interval(d, rng)} {'<' if d.mean() < 0 else '>'}")
+            print(f"  {a}-{b} {metric:4s} | " + " | ".join(cells))
+
+
+if __name__ == "__main__":
+    main()

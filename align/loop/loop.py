@@ -47,7 +47,9 @@ class LoopOptions:
     for the depth phase (a 2 s session with LQ k1 0.1 gave a spurious 5 mm offset at 0.39 %, absorbing
     the depth error of moving edges between unsynchronised frames; a real 0.3 % scale drops it by 1.9 %,
     a 10 mm offset by 1.8 %). scale_px, depth_scale_rel:
-    Cauchy scales (None: 2.5 robust sigmas of the base fit's residual). max_stages: effects accepted at most."""
+    Cauchy scales (None: 2.5 robust sigmas of the base fit's residual). max_stages: effects accepted at most.
+    model_errors: add each found effect's measured model error (``Effect.model_error``) in quadrature to
+    its cluster-robust deviation (the fitted deviation alone is kept in the finding as ``std_fit``)."""
 
     folds: int = 5
     gap: int = 1
@@ -61,6 +63,7 @@ class LoopOptions:
     max_stages: int = 6
     max_nfev: int = 30
     seed: int = 0
+    model_errors: bool = True
 
 
 @dataclass
@@ -319,7 +322,8 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
                                 e.signature, comps[best], stage, extra={"look_alikes": alike} if alike else {}))
         x = refit(model, x, _cols(model, accepted), c=c, max_nfev=o.max_nfev)
     t0 = time.perf_counter()
-    cov, after_summary, before, after = _finalise(model, lib, fixed, findings, x, x_base, accepted, c=c, folds=folds)
+    cov, after_summary, before, after = _finalise(model, lib, fixed, findings, x, x_base, accepted, c=c, folds=folds,
+                                                  model_errors=o.model_errors)
     secs["final"] = time.perf_counter() - t0
     secs["total"] = time.perf_counter() - t_start
     names = model.names()
@@ -327,9 +331,11 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
                        float(threshold or o.z_floor), null_z, c, before, after, before_summary or {}, after_summary, secs)
 
 
-def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_base, accepted, *, c: float, folds):
-    """Parameters with their cluster-robust deviations into the findings (declared ones first), the
-    held-out error of the final model, and the signatures before (base fit) and after."""
+def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_base, accepted, *, c: float, folds,
+              model_errors: bool = True):
+    """Parameters with their cluster-robust deviations (and the effect's model error, in quadrature)
+    into the findings (declared ones first), the held-out error of the final model, and the
+    signatures before (base fit) and after."""
     data = model.data
     group = np.repeat(data.probe, 2)
     free = _cols(model, accepted)
@@ -342,6 +348,10 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
         idx = range(model.layout[e.name].start, model.layout[e.name].stop)
         f.params = {pname: float(x[i]) for pname, i in zip(e.params, idx)}
         f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, idx)}
+        m = dict(zip(e.params, e.model_error)) if model_errors else {}
+        if any(m.values()):
+            f.extra.update({"std_fit": dict(f.std), "model_error": m})
+            f.std = {k: float(np.hypot(v, m.get(k, 0.0))) for k, v in f.std.items()}
     for e in fixed:
         sl = model.layout[e.name]
         findings.insert(0, Finding(e.name, "features", dict(zip(e.params, x[sl])), dict.fromkeys(e.params, 0.0),

@@ -60,7 +60,9 @@ def _fmt_params(d: dict) -> str:
     parts = []
     for k, v in d["params"].items():
         iv = d.get("interval95", {}).get(k)
-        parts.append(f"{k} = {v:.4g}" + (f" [{iv[0]:.4g}, {iv[1]:.4g}]" if iv else ""))
+        me = d.get("model_error", {}).get(k)
+        parts.append(f"{k} = {v:.4g}" + (f" [{iv[0]:.4g}, {iv[1]:.4g}]" if iv else "")
+                     + (f" (model error {me:.2g} included)" if me else ""))
     return ", ".join(parts)
 
 

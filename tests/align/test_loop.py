@@ -220,3 +220,25 @@ def test_two_way_clusters_count_errors_shared_across_probes():
     rows = np.arange(probe.size)
     assert np.allclose(sandwich_two_way(J, r, probe, rows, 1e9), sandwich(J, r, probe, 1e9))
     assert np.allclose(sandwich_two_way(J, r, probe, probe, 1e9), sandwich(J, r, probe, 1e9))
+
+
+def test_stated_hq_k1_deviation_counts_the_model_error_all_probes_share():
+    """The HQ lens's k1 carries a measured model error (align.loop.effects.lens.HQ_K1_MODEL_ERROR) in
+    quadrature with the fit's cluster-robust deviation; the estimate itself is unchanged, and the fit's
+    own deviation stays in the finding."""
+    from dataclasses import replace
+
+    from align.loop.effects.lens import HQ_K1_MODEL_ERROR
+
+    fd, truth = feature_data(seed=3, **SMALL, hq_k1=0.08)
+    T, a = start(truth)
+    on = fit_feature_effects(fd, T=T, shift_us=a, options=OPTS)
+    off = fit_feature_effects(fd, T=T, shift_us=a, options=replace(OPTS, model_errors=False))
+    f, g = (next(f for f in loop.findings if f.name == "lens_hq_k1") for loop in (on, off))
+    assert f.params["k1"] == pytest.approx(g.params["k1"], abs=1e-12)
+    assert 0 < g.std["k1"] < HQ_K1_MODEL_ERROR  # formula probes: the fit alone is tighter than the floor
+    assert f.std["k1"] == pytest.approx(np.hypot(g.std["k1"], HQ_K1_MODEL_ERROR), rel=1e-9)
+    assert f.extra["std_fit"] == g.std and f.extra["model_error"] == {"k1": HQ_K1_MODEL_ERROR}
+    lo, hi = f.to_dict()["interval95"]["k1"]
+    assert hi - lo == pytest.approx(2 * 1.96 * f.std["k1"])
+    assert "model_error" not in g.extra

@@ -10,7 +10,9 @@ class Effect:
     """One effect model: ``name``, ``params`` (names), ``units``, ``steps`` (finite differences),
     ``requires`` (an effect that must be in the model first), ``declared_as`` (the session
     ``effects`` keys that declare it), ``signature`` (the residual covariate it shows against),
-    ``what`` (one line for reports)."""
+    ``what`` (one line for reports), ``model_error`` (per parameter: the error its estimate shows on
+    rendered sessions beyond its fitted deviation, measured against the simulator's truth and added
+    in quadrature to the stated deviation; 0 where none was measured)."""
 
     name: str = ""
     params: tuple[str, ...] = ()
@@ -20,6 +22,7 @@ class Effect:
     declared_as: tuple[str, ...] = ()
     signature: str = ""
     what: str = ""
+    model_error: tuple[float, ...] = ()
 
     def time_offset_us(self, data, v: np.ndarray):
         return 0.0

@@ -64,7 +64,8 @@ class AlignOptions:
     shift_range_ms: search Delta in [-r, +r] ms. shift_step_ms: coarse scan step.
     features: sift | orb | akaze. max_features: per image. detect_scale: images are resized by
     this factor for detection (coordinates stay full resolution); default: so that the shorter side
-    is about 240 px, at most halved (SIFT's cost falls with the square). probes: HQ frames used for the fit.
+    is about 240 px, at most halved (SIFT's cost falls with the square), and full resolution where that
+    would shrink it by less than :data:`FULL_RES_ABOVE`. probes: HQ frames used for the fit.
     association: nearest (eq. 28) | greedy (TUM). max_dt_ms: largest |t_LQ - (t_HQ + Delta)| of
     a kept pair (default half the LQ frame period). residual_k: a pair whose depth residual lies
     more than k MAD-sigmas above the median is dropped. time_model: constant | linear.
@@ -294,10 +295,18 @@ class ProbeBuilder:
                      anchor=anchor, w_grad=w_grad[ia])
 
 
+#: Detection runs at full resolution when the default resize would keep more than this share of each
+#: side: a slight resize saves little time, and on half-scale simulated sessions (HQ colour 480x270,
+#: resized 0.889x) it biased the alignment loop's HQ lens k1 by +0.0025 on clean sessions and by
+#: +0.004 more at k1 = -0.1, with a spurious 4 mm depth offset on 2 of 4 seeds (notes of issue 12).
+FULL_RES_ABOVE = 0.75
+
+
 def _detect_scale(image: np.ndarray, scale: float | None) -> float:
     if scale is not None:
         return float(scale)
-    return float(min(1.0, max(0.5, 240.0 / min(image.shape[:2]))))
+    s = float(min(1.0, max(0.5, 240.0 / min(image.shape[:2]))))
+    return 1.0 if s > FULL_RES_ABOVE else s
 
 
 def build_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> tuple[list[Probe], int]:

@@ -12,6 +12,7 @@ one-sided 95 % upper bound when none occurs: ``1 - 0.05^(1/n)``).
     perf/loop_study.py --simulated --seeds 100-103 --effect rolling_shutter_ms=10     # small size: power
     perf/loop_study.py --simulated --seeds 11 --seconds 30 --scale 1                  # timing of a 30 s session
     perf/loop_study.py --seeds 0-49 --effect k1=0.02                                  # formula probes: power
+    perf/loop_study.py --summarise a.jsonl b.jsonl                        # the summary of saved rows, pooled
 
 Without ``--simulated`` the study runs the feature phase on probes made by formula (``align.loop.synthetic``:
 no renderer, no feature tracker): cheap enough for many seeds; effects ``drift_ppm``,
@@ -89,6 +90,21 @@ def run_synthetic(seed: int, effects: dict, args) -> dict:
             "synthetic": True}
 
 
+def _coverage(est: list[dict], param: str, truth: float) -> None:
+    """RMS of error/std and the share of 95 % intervals covering the truth; where a finding carries a
+    model error, the same for the fit's own deviation (``std_fit``) beside it."""
+    if not est:
+        return
+    err = np.array([d["params"][param] - truth for d in est])
+    for label, key in (("stated", "std"), ("fit alone", "std_fit")):
+        sd = np.array([(d.get(key) or {}).get(param, np.nan) for d in est], float)
+        if not np.all(np.isfinite(sd)):
+            continue
+        z = err / sd
+        print(f"    {param}, {label} deviation: RMS error/std {np.sqrt(np.mean(z ** 2)):.2f}, "
+              f"intervals covering {int(np.sum(np.abs(z) < 1.96))} of {z.size}, RMS error {np.sqrt(np.mean(err ** 2)):.4g}")
+
+
 def summarise(rows: list[dict]) -> None:
     n = len(rows)
     eff = rows[0]["effects"] if rows else {}
@@ -116,6 +132,7 @@ def summarise(rows: list[dict]) -> None:
             cover = iv is not None and iv[0] <= truth <= iv[1]
             print(f"    {loop_name}.{param}: truth {truth:g}, estimate {val:.4g} {iv and [round(x, 4) for x in iv]}, "
                   f"error {100 * (val - truth) / truth:+.1f} %, interval covers: {cover}")
+        _coverage(est, param, truth)
     hb = [r["heldout_px"][0] for r in rows]
     ha = [r["heldout_px"][1] for r in rows]
     print(f"  held-out feature residual, median abs px: before {np.mean(hb):.3f}, after {np.mean(ha):.3f}")
@@ -142,7 +159,12 @@ def main(argv=None) -> None:
                     help="align's feature detection scale (default: align's own choice)")
     ap.add_argument("--jsonl", default=None, help="append every session's result to this file")
     ap.add_argument("--simulated", action="store_true", help="rendered lq-hq sessions and the whole loop (slow)")
+    ap.add_argument("--summarise", nargs="+", default=None, metavar="JSONL",
+                    help="print the summary of rows saved with --jsonl (one configuration) and run nothing")
     args = ap.parse_args(argv)
+    if args.summarise:
+        summarise([json.loads(line) for p in args.summarise for line in Path(p).read_text().splitlines() if line.strip()])
+        return
     effects = {k: float(v) for k, _, v in (e.partition("=") for e in args.effect)}
     args.synthetic = not args.simulated
     if args.seconds is None:

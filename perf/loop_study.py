@@ -67,7 +67,14 @@ def run_one(seed: int, effects: dict, args) -> dict:
             "heldout_px": [loop.features.heldout_before.get("median_abs"), loop.features.heldout_after.get("median_abs")],
             "heldout_depth": None if loop.depth is None else [loop.depth.heldout_before["median_abs"],
                                                                loop.depth.heldout_after["median_abs"]],
-            "threshold": loop.features.threshold, "unexplained": [s.name for s in loop.unexplained()]}
+            "threshold": loop.features.threshold, "unexplained": [s.name for s in loop.unexplained()],
+            "stages": _stages(loop.features.stages) + ([] if loop.depth is None else _stages(loop.depth.stages))}
+
+
+def _stages(stages) -> list[dict]:
+    """Each stage's candidates as ``{name: [z, delta_bic, held-out improvement]}`` (look-alike confusion)."""
+    return [{"accepted": s.accepted, "candidates": {n: [c.z, c.delta_bic, c.improvement] for n, c in s.candidates.items()}}
+            for s in stages]
 
 
 SYNTH_EXPECT = {"drift_ppm": ("clock_drift", "b_ppm"), "readout_ms": ("rolling_shutter_lq", "readout_ms"),

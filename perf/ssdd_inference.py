@@ -1,13 +1,16 @@
 """SSDD inference time per 640x480 frame through the Denoiser interface, by network width.
 
     .venv/bin/python perf/ssdd_inference.py [--widths 8,16,32] [--levels 4] [--frames 10] [--threads 2]
+        [--prefilter none,bilateral] [--fold-mean]
 
 For each width the script writes a weights file of an untrained network of that shape (timing does
 not depend on the values), builds ``ssdd_unet`` / ``ssdd_lstm`` from it exactly as ``bench run`` does,
 and times ``denoise`` (level 1) and ``denoise_step`` (levels 1 + 2, state carried) on a synthetic
 640x480 frame. Reference in the same run: the hole-aware bilateral filter (``bf``) on the same frame.
 Prints milliseconds per frame (median, min) and the ratio to ``bf``. Target (issue 10): < 100 ms at
-the default width (16) on two CPU cores.
+the default width (16) on two CPU cores. ``--prefilter bilateral`` times level 1 with its bilateral
+prefilter (one ``bf`` pass more per frame); ``--fold-mean`` feeds level 2 the mean of the fold models
+(``level2.level1_input = "fold_mean"``: k = 2 level-1 passes per frame).
 """
 from __future__ import annotations
 
@@ -26,18 +29,24 @@ from methods import get  # noqa: E402
 from methods.base import FrameInput  # noqa: E402
 from methods.nn.checkpoint import save_tensors  # noqa: E402
 from methods.nn.config import to_dict  # noqa: E402
-from methods.ssdd.config import Level1Config, Level2Config, SSDDConfig  # noqa: E402
+from methods.ssdd.config import FOLD_PREFIX, Level1Config, Level2Config, SSDDConfig  # noqa: E402
 from methods.ssdd.networks import NetConfig, SSDDLSTMUNet, SSDDUNet  # noqa: E402
+from methods.ssdd.prefilter import PrefilterConfig  # noqa: E402
 from methods.tools.synthetic import synthetic_scene  # noqa: E402
 
 
-def _weights(folder: Path, width: int, levels: int) -> Path:
-    cfg = SSDDConfig(level1=Level1Config(model=NetConfig(width=width, levels=levels)),
-                     level2=Level2Config(model=NetConfig(width=width, levels=levels, recurrent=[-1])))
+def _weights(folder: Path, width: int, levels: int, prefilter: str, fold_mean: bool) -> Path:
+    cfg = SSDDConfig(level1=Level1Config(model=NetConfig(width=width, levels=levels),
+                                         prefilter=PrefilterConfig(kind=prefilter)),
+                     level2=Level2Config(model=NetConfig(width=width, levels=levels, recurrent=[-1]),
+                                         level1_input="fold_mean" if fold_mean else "final"))
     torch.manual_seed(0)
-    tensors = {**{f"level1/{k}": v for k, v in SSDDUNet(cfg.level1.model).state_dict().items()},
+    level1 = lambda: SSDDUNet(cfg.level1.model, base=cfg.level1.prefilter.enabled).state_dict()  # noqa: E731
+    tensors = {**{f"level1/{k}": v for k, v in level1().items()},
                **{f"level2/{k}": v for k, v in SSDDLSTMUNet(cfg.level2.model).state_dict().items()}}
-    path = folder / f"w{width}.safetensors"
+    if fold_mean:
+        tensors.update({f"{FOLD_PREFIX}{f}/{k}": v for f in range(cfg.folds) for k, v in level1().items()})
+    path = folder / f"w{width}-{prefilter}.safetensors"
     save_tensors(path, tensors, kind="weights", meta={"method": "ssdd_lstm", "config": to_dict(cfg),
                                                        "training": {"datasets": []}})
     return path
@@ -59,16 +68,18 @@ def main() -> int:
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--prefilter", default="none", help="comma list of level-1 prefilters to time (none, bilateral)")
+    ap.add_argument("--fold-mean", action="store_true", help="level 2 fed the mean of the 2 fold models")
     a = ap.parse_args()
     torch.set_num_threads(a.threads)
     _, depth = synthetic_scene((480, 640), seed=1)
     bf = get("bf")
     ref = _time(lambda: bf.denoise(depth), a.frames)
     print(f"640x480, {a.threads} torch threads, {a.frames} frames; reference bf: median {np.median(ref):.1f} ms")
-    print(f"{'width':>5} {'levels':>6} {'method':>10} {'median ms':>10} {'min ms':>8} {'x bf':>6}")
+    print(f"{'width':>5} {'levels':>6} {'prefilter':>9} {'method':>10} {'median ms':>10} {'min ms':>8} {'x bf':>6}")
     with tempfile.TemporaryDirectory() as tmp:
-        for width in (int(w) for w in a.widths.split(",")):
-            path = _weights(Path(tmp), width, a.levels)
+        for width, pre in ((int(w), p) for w in a.widths.split(",") for p in a.prefilter.split(",")):
+            path = _weights(Path(tmp), width, a.levels, pre, a.fold_mean)
             unet = get("ssdd_unet", weights=str(path))
             lstm = get("ssdd_lstm", weights=str(path))
             state = {"s": lstm.start_sequence()}
@@ -78,7 +89,7 @@ def main() -> int:
 
             for name, fn in (("ssdd_unet", lambda: unet.denoise(depth)), ("ssdd_lstm", step)):
                 t = _time(fn, a.frames)
-                print(f"{width:>5} {a.levels:>6} {name:>10} {np.median(t):>10.1f} {min(t):>8.1f} "
+                print(f"{width:>5} {a.levels:>6} {pre:>9} {name:>10} {np.median(t):>10.1f} {min(t):>8.1f} "
                       f"{np.median(t) / np.median(ref):>6.2f}")
     return 0
 

@@ -48,8 +48,8 @@ class LoopOptions:
     the depth error of moving edges between unsynchronised frames; a real 0.3 % scale drops it by 1.9 %,
     a 10 mm offset by 1.8 %). scale_px, depth_scale_rel:
     Cauchy scales (None: 2.5 robust sigmas of the base fit's residual). max_stages: effects accepted at most.
-    model_errors: add each found effect's measured model error (``Effect.model_error``) in quadrature to
-    its cluster-robust deviation (the fitted deviation alone is kept in the finding as ``std_fit``)."""
+    model_errors: add each found effect's measured model error (``model_error`` of the feature and depth
+    effects) in quadrature to its cluster-robust deviation (the fit's own is kept as ``std_fit``)."""
 
     folds: int = 5
     gap: int = 1
@@ -348,10 +348,8 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
         idx = range(model.layout[e.name].start, model.layout[e.name].stop)
         f.params = {pname: float(x[i]) for pname, i in zip(e.params, idx)}
         f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, idx)}
-        m = dict(zip(e.params, e.model_error)) if model_errors else {}
-        if any(m.values()):
-            f.extra.update({"std_fit": dict(f.std), "model_error": m})
-            f.std = {k: float(np.hypot(v, m.get(k, 0.0))) for k, v in f.std.items()}
+        if model_errors:
+            _add_model_error(f, dict(zip(e.params, e.model_error)))
     for e in fixed:
         sl = model.layout[e.name]
         findings.insert(0, Finding(e.name, "features", dict(zip(e.params, x[sl])), dict.fromkeys(e.params, 0.0),
@@ -363,6 +361,14 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
     before = feature_signatures(data, model.residuals(x_base), shift_us=s_b, stamps=st_b)
     after = feature_signatures(data, r0, shift_us=s_a, stamps=st_a)
     return cov, after_summary, before, after
+
+
+def _add_model_error(f: Finding, m: dict) -> None:
+    """The effect's measured model error (``{param: value}``, 0 = none) in quadrature with the fit's
+    deviation; the fit's own deviation stays as ``std_fit``."""
+    if any(m.values()):
+        f.extra.update({"std_fit": dict(f.std), "model_error": m})
+        f.std = {k: float(np.hypot(v, m.get(k, 0.0))) for k, v in f.std.items()}
 
 
 def _hq_cells(data: FeatureData) -> np.ndarray:
@@ -454,6 +460,8 @@ def fit_depth_effects(data: DepthData, *, declared: dict | None = None, options:
             offset = o_decl + delta[k]
             f.params, f.std = {"offset_mm": offset * 1e3}, {"offset_mm": float(sd[k]) * 1e3}
             f.units = {"offset_mm": "mm"}
+        if o.model_errors:
+            _add_model_error(f, {next(iter(f.params)): e.model_error * (1e3 if e.param == "o_m" else 1.0)})
     for e in fixed:
         val = {"scale": s_decl} if e.param == "s_minus_1" else {"offset_mm": o_decl * 1e3}
         findings.insert(0, Finding(e.name, "depth", val, {k: 0.0 for k in val}, {k: ("1" if k == "scale" else "mm")

@@ -242,3 +242,22 @@ def test_stated_hq_k1_deviation_counts_the_model_error_all_probes_share():
     lo, hi = f.to_dict()["interval95"]["k1"]
     assert hi - lo == pytest.approx(2 * 1.96 * f.std["k1"])
     assert "model_error" not in g.extra
+
+
+def test_stated_depth_scale_deviation_counts_the_geometry_model_error():
+    """The depth scale carries a measured model error (align.loop.effects.depth.DEPTH_SCALE_MODEL_ERROR,
+    the warp geometry's own error) in quadrature; the offset carries none; estimates unchanged."""
+    from dataclasses import replace
+
+    from align.loop.effects.depth import DEPTH_SCALE_MODEL_ERROR
+
+    d = _depth(scale=1.01, offset_m=0.03)
+    on = fit_depth_effects(d, options=OPTS)
+    off = fit_depth_effects(d, options=replace(OPTS, model_errors=False))
+    f_on, f_off = ({f.name: f for f in dl.findings} for dl in (on, off))
+    assert on.scale == off.scale and on.offset_m == off.offset_m
+    s_fit = f_off["depth_scale"].std["scale"]
+    assert 0 < s_fit < DEPTH_SCALE_MODEL_ERROR
+    assert f_on["depth_scale"].std["scale"] == pytest.approx(np.hypot(s_fit, DEPTH_SCALE_MODEL_ERROR), rel=1e-9)
+    assert f_on["depth_scale"].extra["std_fit"] == {"scale": s_fit}
+    assert f_on["depth_offset"].std == f_off["depth_offset"].std and "model_error" not in f_on["depth_offset"].extra

@@ -349,7 +349,7 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
         f.params = {pname: float(x[i]) for pname, i in zip(e.params, idx)}
         f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, idx)}
         if model_errors:
-            _add_model_error(f, dict(zip(e.params, e.model_error)))
+            _add_model_error(f, dict(zip(e.params, e.model_errors(data))))
     for e in fixed:
         sl = model.layout[e.name]
         findings.insert(0, Finding(e.name, "features", dict(zip(e.params, x[sl])), dict.fromkeys(e.params, 0.0),

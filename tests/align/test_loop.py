@@ -261,3 +261,23 @@ def test_stated_depth_scale_deviation_counts_the_geometry_model_error():
     assert f_on["depth_scale"].std["scale"] == pytest.approx(np.hypot(s_fit, DEPTH_SCALE_MODEL_ERROR), rel=1e-9)
     assert f_on["depth_scale"].extra["std_fit"] == {"scale": s_fit}
     assert f_on["depth_offset"].std == f_off["depth_offset"].std and "model_error" not in f_on["depth_offset"].extra
+
+
+def test_stated_drift_deviation_counts_the_stamp_wander_over_the_probes_span():
+    """Clock drift's model error is align.loop.effects.drift.WANDER_US spread as a trend over the probes'
+    span (sqrt(12) WANDER_US / span, in ppm); in quadrature with the fit's deviation; estimate unchanged."""
+    from dataclasses import replace
+
+    from align.loop.effects.drift import WANDER_US
+
+    fd, truth = feature_data(seed=3, **SMALL, drift_ppm=1500.0)
+    T, a = start(truth)
+    on = fit_feature_effects(fd, T=T, shift_us=a, options=OPTS)
+    off = fit_feature_effects(fd, T=T, shift_us=a, options=replace(OPTS, model_errors=False))
+    f, g = (next(f for f in loop.findings if f.name == "clock_drift") for loop in (on, off))
+    span_s = (fd.t_hq_us.max() - fd.t_hq_us.min()) / 1e6
+    m = WANDER_US * np.sqrt(12) / span_s
+    assert 40 < m < 60  # 100 us over the 7.4 s the probes of an 8 s session span
+    assert f.params["b_ppm"] == pytest.approx(g.params["b_ppm"], abs=1e-9)
+    assert f.std["b_ppm"] == pytest.approx(np.hypot(g.std["b_ppm"], m), rel=1e-9)
+    assert f.extra["model_error"]["b_ppm"] == pytest.approx(m)

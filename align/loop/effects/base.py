@@ -36,6 +36,10 @@ class Effect:
     def correct_points(self, data, X: np.ndarray, v: np.ndarray) -> np.ndarray:
         return X
 
+    def model_errors(self, data) -> tuple[float, ...]:
+        """Each parameter's model error for these features (default: the constant ``model_error``)."""
+        return tuple(self.model_error) or (0.0,) * len(self.params)
+
     def declared_values(self, declared: dict) -> np.ndarray | None:
         """The parameter values a session's declared ``effects`` give this effect (None: not declared)."""
         return None

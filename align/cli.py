@@ -63,6 +63,10 @@ def register(subparsers) -> None:
                         "between two HQ frames (default: the reference is carried to the LQ instant from both)")
     g.add_argument("--motion-min-dt-ms", type=float, default=1.0, metavar="MS",
                    help="pairs closer in time than this keep the plain warp (default: %(default)g)")
+    g.add_argument("--motion-model", choices=("edges", "flow"), default="edges",
+                   help="how the reference is carried: edges (crossing times of depth edges, align/motion.py) or flow "
+                        "(the HQ frame's points moved along the HQ colour images' optical flow, align/motion_flow.py: "
+                        "closer to the truth, about 2x the time) (default: %(default)s)")
     g = p.add_argument_group("output")
     g.add_argument("--no-truth", action="store_true", help="do not attach the simulator's truth depth (simulated sessions)")
     g.add_argument("--no-report", action="store_true", help="skip report.md and the figures")
@@ -91,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
             on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
             report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
             loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth, reference_edges=args.reference_edges,
-            motion=not args.no_motion, motion_min_dt_ms=args.motion_min_dt_ms)
+            motion=not args.no_motion, motion_min_dt_ms=args.motion_min_dt_ms, motion_model=args.motion_model)
     except AlignError as exc:
         raise _with_flag(exc)
     sh = r.shift

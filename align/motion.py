@@ -213,7 +213,7 @@ class PairMotion:
     """How one pair's reference was made: ``dt_us`` (LQ instant minus its HQ frame's, µs), the HQ
     frame indices ``a, b`` and ``alpha`` when compensated (``None`` otherwise), ``masked`` pixels
     (:attr:`Compensated.masked`, and ``masked_map`` the ``(H, W)`` bool image of them), ``valid``
-    finite reference pixels, ``reason`` why not compensated."""
+    finite reference pixels, ``reason`` why not compensated, ``model`` how it was (edges or scene flow)."""
 
     dt_us: float
     frames: tuple[int, int] | None
@@ -222,6 +222,7 @@ class PairMotion:
     valid: int
     reason: str = ""
     masked_map: np.ndarray | None = None
+    model: str = "edges"  # how a compensated pair was carried: "edges" (compensate_motion) or "scene flow"
 
 
 class MotionReference:
@@ -235,11 +236,14 @@ class MotionReference:
         min_dt_us: pairs closer in time than this keep the plain warp (bit for bit).
         enabled: ``False``: every pair keeps the plain warp.
         edge_rel, max_motion_px: :func:`compensate_motion`'s.
+        moved: ``moved(own, other, frac)`` -> the reference of HQ frame ``own`` moved ``frac`` of the
+            way to frame ``other`` (:class:`align.motion_flow.FlowMotion`, scene flow), or ``None``
+            where it cannot (then the edges decide, as without it); ``None``: edges only.
     """
 
     def __init__(self, warped, t_hq_us: np.ndarray, *, min_dt_us: float = 1000.0, enabled: bool = True,
                  edge_rel: float = DEFAULT_MOTION_EDGE_REL, max_motion_px: float = DEFAULT_MAX_MOTION_PX,
-                 keep: int = 4) -> None:
+                 keep: int = 4, moved=None) -> None:
         if not min_dt_us >= 0:
             raise OptionError(f"smallest compensated time apart must be >= 0 us, got {min_dt_us!r}")
         self._warped, self.t_hq_us = warped, np.asarray(t_hq_us, np.int64)
@@ -247,6 +251,7 @@ class MotionReference:
         self.edge_rel, self.max_motion_px = float(edge_rel), float(max_motion_px)
         self._cache: dict[int, np.ndarray] = {}
         self._keep = max(int(keep), 2)
+        self._moved = moved
 
     def warp(self, i: int) -> np.ndarray:
         """The plain warp of HQ frame ``i`` (cached)."""
@@ -267,6 +272,10 @@ class MotionReference:
         if br is None:
             return own, PairMotion(float(dt_us), None, None, 0, int(np.isfinite(own).sum()), "no HQ neighbour")
         a, b, alpha = br
+        if self._moved is not None:
+            ref = self._moved(int(i), b if a == i else a, alpha if a == i else 1.0 - alpha)
+            if ref is not None:
+                return ref, PairMotion(float(dt_us), (a, b), alpha, 0, int(np.isfinite(ref).sum()), model="scene flow")
         r = compensate_motion(self.warp(a), self.warp(b), alpha, own="a" if a == i else "b", edge_rel=self.edge_rel,
                               max_motion_px=self.max_motion_px)
         return r.depth, PairMotion(float(dt_us), (a, b), alpha, r.n_masked, int(np.isfinite(r.depth).sum()),
@@ -294,6 +303,7 @@ def motion_summary(pairs: list, *, enabled: bool, min_dt_ms: float) -> dict:
         "model": "align.motion: reference at the LQ instant from the two HQ frames around it" if enabled else "off",
         "enabled": bool(enabled), "min_dt_ms": float(min_dt_ms), "pairs": len(pairs), "compensated": len(comp),
         "not_compensated": why,
+        "compensated_by": {m: sum(pm.model == m for pm in comp) for m in sorted({pm.model for pm in comp})},
         "time_apart_ms": {"median": float(np.median(dt)) if dt.size else None, "max": float(dt.max()) if dt.size else None},
         "masked_pixels": int(masked), "masked_share": masked / max(valid + masked, 1),
         "roi_masked_share": roi_masked / max(roi_valid + roi_masked, 1) if roi else None,

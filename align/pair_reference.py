@@ -7,7 +7,8 @@ An HQ depth frame becomes the LQ frame's reference in three steps, always in thi
    the ``mixed`` rule warps without the HQ's mixed samples and masks what they hide,
    :meth:`align.reference_edges.EdgeRule.warp`);
 2. when the LQ frame is exposed apart from its HQ frame, the reference carried to the LQ instant
-   from the two HQ frames around it (:mod:`align.motion`);
+   from the two HQ frames around it (:mod:`align.motion`, or by scene flow along the HQ colour
+   images' optical flow, :mod:`align.motion_flow`);
 3. the edge rule's mask (far side of reference edges) on the result.
 
 The aligned dataset's references (:func:`align.pipeline.write_pair_dataset`) and every error
@@ -22,21 +23,29 @@ from typing import Callable
 
 import numpy as np
 
+from align.errors import OptionError
 from align.motion import MotionReference, PairMotion
+from align.motion_flow import FlowMotion, SceneFlow
 from align.reference_edges import EdgeRule
 from align.warp import DepthWarper
+
+#: how a pair's reference is carried to the LQ instant (:class:`ReferenceOptions`)
+MOTION_MODELS = ("edges", "flow")
 
 
 @dataclass(frozen=True)
 class ReferenceOptions:
     """How references are built: ``reference_edges`` (edge rule by name, :mod:`align.reference_edges`),
     ``edge_rel`` (relative depth step of an edge, for the warp and the rule), ``motion`` (carry to the
-    LQ instant), ``motion_min_dt_ms`` (pairs closer in time keep the plain warp)."""
+    LQ instant), ``motion_min_dt_ms`` (pairs closer in time keep the plain warp), ``motion_model``
+    (``"edges"``: :mod:`align.motion`; ``"flow"``: the HQ frame's points moved along the HQ colour
+    images' optical flow, :mod:`align.motion_flow`, where the HQ frames have colour)."""
 
     reference_edges: str = "strict"
     edge_rel: float = 0.03
     motion: bool = True
     motion_min_dt_ms: float = 1.0
+    motion_model: str = "edges"
 
     @classmethod
     def from_meta(cls, meta: dict) -> "ReferenceOptions":
@@ -45,7 +54,8 @@ class ReferenceOptions:
         d = cls()
         return cls(reference_edges=edges.get("rule", d.reference_edges), edge_rel=float(edges.get("edge_rel", d.edge_rel)),
                    motion=bool(motion.get("enabled", d.motion)),
-                   motion_min_dt_ms=float(motion.get("min_dt_ms", d.motion_min_dt_ms)))
+                   motion_min_dt_ms=float(motion.get("min_dt_ms", d.motion_min_dt_ms)),
+                   motion_model=str(motion.get("motion_model", d.motion_model)))
 
 
 @dataclass
@@ -66,17 +76,27 @@ class PairReferences:
         K_hq, K_lq, T_lq_hq: the geometry (:class:`align.warp.DepthWarper`'s).
         t_hq_us: ``(N,)`` HQ frame stamps, µs (the motion step's brackets).
         options: :class:`ReferenceOptions`; ``None``: ``align``'s defaults.
+        hq_color: for ``motion_model="flow"``: ``(read_color, K_hq_color, T_hqcolor_hqdepth)``,
+            ``read_color(i)`` -> HQ colour image of depth frame ``i`` (RGB uint8) or ``None``; without
+            it the edges carry every pair.
     """
 
     def __init__(self, read_hq: Callable[[int], np.ndarray], *, K_hq, K_lq, T_lq_hq, t_hq_us: np.ndarray,
-                 options: ReferenceOptions | None = None) -> None:
+                 options: ReferenceOptions | None = None, hq_color: tuple | None = None) -> None:
         self.options = options or ReferenceOptions()
+        if self.options.motion_model not in MOTION_MODELS:
+            raise OptionError(f"motion model must be one of {', '.join(MOTION_MODELS)}, got {self.options.motion_model!r}",
+                              option="motion_model")
         self.rule = EdgeRule.named(self.options.reference_edges, edge_rel=self.options.edge_rel)
         self._warper = DepthWarper(K_hq, K_lq, T_lq_hq, edge_rel=self.options.edge_rel, edge_reach=self.rule.edge_reach)
         self._read_hq = read_hq
         self._frame_masks: dict[int, np.ndarray] = {}  # what the rule masked at the warp, per HQ frame
+        moved = None
+        if self.options.motion_model == "flow" and hq_color is not None:
+            read_color, K_color, T_color_depth = hq_color
+            moved = FlowMotion(read_hq, read_color, self._warper, SceneFlow(K_hq, K_color, T_color_depth))
         self.motion = MotionReference(self._warp, t_hq_us, enabled=self.options.motion,
-                                      min_dt_us=1000 * self.options.motion_min_dt_ms)
+                                      min_dt_us=1000 * self.options.motion_min_dt_ms, moved=moved)
 
     def _warp(self, i: int) -> np.ndarray:
         depth, mask = self.rule.warp(self._warper, self._read_hq(i))

@@ -42,7 +42,7 @@ from align.errors import AlignError, AssociationError, FeatureError, OptionError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
 from align.features import FEATURES, detect, inverse_depth_gradient, lift, match, track
 from align.motion import motion_summary
-from align.pair_reference import PairReferences, ReferenceOptions
+from align.pair_reference import MOTION_MODELS, PairReferences, ReferenceOptions
 from align.residuals import depth_residual, outliers, robust_summary
 from align.reference_edges import EdgeRule
 from align.roi import background_depth, foreground_mask
@@ -73,7 +73,8 @@ class AlignOptions:
     0, marked unobservable in aligned.json and the report). attach_truth: simulated sessions.
     motion: carry the reference to the LQ frame's instant from the two HQ frames around it
     (:mod:`align.motion`) for pairs at least ``motion_min_dt_ms`` apart; closer pairs keep the plain
-    warp, bit for bit.
+    warp, bit for bit. motion_model: ``"edges"`` (:mod:`align.motion`) or ``"flow"`` (scene flow along
+    the HQ colour images' optical flow, :mod:`align.motion_flow`; edges where a frame has no colour).
     """
 
     shift_range_ms: float = DEFAULT_RANGE_US / 1000
@@ -102,6 +103,7 @@ class AlignOptions:
     reference_edges: str = "strict"
     motion: bool = True
     motion_min_dt_ms: float = 1.0
+    motion_model: str = "edges"
 
     def check(self) -> None:
         if self.board is not None:
@@ -128,6 +130,9 @@ class AlignOptions:
         if not self.motion_min_dt_ms >= 0:
             raise OptionError(f"smallest motion-compensated time apart must be >= 0 ms, got {self.motion_min_dt_ms!r}",
                               option="motion_min_dt_ms")
+        if self.motion_model not in MOTION_MODELS:
+            raise OptionError(f"motion model must be one of {', '.join(MOTION_MODELS)}, got {self.motion_model!r}",
+                              option="motion_model")
         if self.on_unobservable not in ("error", "flag"):
             raise OptionError(f"on_unobservable must be 'error' or 'flag', got {self.on_unobservable!r}",
                               option="on_unobservable")
@@ -580,7 +585,8 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
                 example = {"lq": lq, "ref": ref, "color": color, "roi": roi, "lq_frame": fl, "hq_frame": int(setup.f_hq[i])}
         meta["reference_edges"] = {**rule.to_dict(), "masked_roi_pixels": int(masked[0]), "roi_pixels": int(masked[1])}
         writer.write_table("pairs.csv", table.to_csv(setup, shift_all))
-        meta["motion"] = motion_summary(motions, enabled=opts.motion, min_dt_ms=opts.motion_min_dt_ms)
+        meta["motion"] = {**motion_summary(motions, enabled=opts.motion, min_dt_ms=opts.motion_min_dt_ms),
+                          "motion_model": opts.motion_model}
         report = None
         if opts.report:
             from align.report import write_report
@@ -600,7 +606,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
 def reference_options(opts: AlignOptions) -> ReferenceOptions:
     """The options of :mod:`align.pair_reference` that ``opts`` sets."""
     return ReferenceOptions(reference_edges=opts.reference_edges, edge_rel=opts.edge_rel, motion=opts.motion,
-                            motion_min_dt_ms=opts.motion_min_dt_ms)
+                            motion_min_dt_ms=opts.motion_min_dt_ms, motion_model=opts.motion_model)
 
 
 def pair_references(setup: PairSetup, *, T_lq_hq: Transform, K_lq=None,
@@ -613,8 +619,13 @@ def pair_references(setup: PairSetup, *, T_lq_hq: Transform, K_lq=None,
     def read_hq(i: int) -> np.ndarray:
         return sess.read_depth(setup.hq, int(setup.f_hq[i]), stream=setup.hq_depth)
 
+    def read_hq_color(i: int) -> np.ndarray | None:
+        c = int(setup.hq_color_of_depth[i])
+        return None if c < 0 else sess.read_color(setup.hq, int(setup.f_hq_c[c]), stream=setup.hq_color)
+
     return PairReferences(read_hq, K_hq=setup.K_hq, K_lq=setup.K_lq if K_lq is None else K_lq, T_lq_hq=T_lq_hq,
-                          t_hq_us=setup.t_hq, options=options)
+                          t_hq_us=setup.t_hq, options=options,
+                          hq_color=(read_hq_color, setup.K_hq_color, setup.T_hqdepth_hqcolor.inverse()))
 
 
 def _roi_counts(roi, ref: np.ndarray, masked) -> tuple[int | None, int | None]:

@@ -30,6 +30,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from align.motion import MotionReference  # noqa: E402
+from align.motion_flow import FlowMotion, SceneFlow  # noqa: E402
 from align.pipeline import pair_setup  # noqa: E402
 from align.reference_edges import EdgeRule  # noqa: E402
 from align.roi import background_depth, foreground_mask  # noqa: E402
@@ -61,18 +62,21 @@ def _scores(setup, warper, tr, pairs, rule: EdgeRule) -> dict:
 
     plain = MotionReference(warped, setup.t_hq, enabled=False)
     moved = MotionReference(warped, setup.t_hq)
+    flow = MotionReference(warped, setup.t_hq, moved=_flow_motion(setup, warper, lambda i: sess.read_depth("hq", int(setup.f_hq[i]))))
     rows, maps = [], []
     for i, j, dt in pairs:
         lq = sess.read_depth("lq", int(setup.f_lq[j]))
         ref, pm = moved(i, dt)
-        rows.append((rule.apply(plain(i, dt)[0])[0], rule.apply(ref)[0], tr.depth("lq", int(setup.f_lq[j])), lq))
+        rows.append((rule.apply(plain(i, dt)[0])[0], rule.apply(ref)[0], tr.depth("lq", int(setup.f_lq[j])), lq,
+                     rule.apply(flow(i, dt)[0])[0]))
         maps.append(pm.masked_map)
-    bg = background_depth(np.stack([np.where(np.isfinite(p), p, lq) for p, _, _, lq in rows]))
+    bg = background_depth(np.stack([np.where(np.isfinite(r[0]), r[0], r[3]) for r in rows]))
     out = {}
-    for name, col in (("plain", 0), ("compensated", 1)):
+    for name, col in (("plain", 0), ("compensated", 1), ("flow", 4)):
         err, n_roi, n_masked, n_lost = [], 0, 0, 0
         for row, masked in zip(rows, maps):
             p, ref, truth, lq = row[0], row[col], row[2], row[3]
+            masked = masked if col == 1 else None
             roi = foreground_mask(np.where(np.isfinite(p), p, lq), bg) & np.isfinite(truth)
             n_roi += int((roi & np.isfinite(p)).sum())
             n_masked += 0 if masked is None else int((roi & masked).sum())
@@ -84,6 +88,18 @@ def _scores(setup, warper, tr, pairs, rule: EdgeRule) -> dict:
     return out
 
 
+def _flow_motion(setup, warper, read_depth, read_color=None) -> FlowMotion:
+    """:class:`align.motion_flow.FlowMotion` of the session's HQ rig (``read_color`` None: from the session)."""
+    sess = setup.session
+
+    def from_session(i):
+        c = int(setup.hq_color_of_depth[i])
+        return None if c < 0 else sess.read_color(setup.hq, int(setup.f_hq_c[c]))
+
+    return FlowMotion(read_depth, read_color or from_session, warper,
+                      SceneFlow(setup.K_hq, setup.K_hq_color, setup.T_hqdepth_hqcolor.inverse()))
+
+
 def _throughput(setup, warper, frames: int) -> tuple[tuple[float, float], tuple[float, float]]:
     """Pairs per second of the plain warp and of the compensated reference over ``frames`` consecutive
     pairs: ``((plain, compensated) by the wall clock, (plain, compensated) by this process's CPU time)``.
@@ -92,19 +108,28 @@ def _throughput(setup, warper, frames: int) -> tuple[tuple[float, float], tuple[
     sess = setup.session
     n = min(frames, setup.f_hq.size - 1)
     depth = [sess.read_depth("hq", int(setup.f_hq[i])) for i in range(n + 1)]
+    color = [sess.read_color(setup.hq, int(setup.f_hq_c[setup.hq_color_of_depth[i]])) for i in range(n + 1)]
     dt = 0.25 * float(np.median(np.diff(setup.t_hq)))  # a quarter period apart: every pair compensated
-    for enabled in (False, True):
-        MotionReference(lambda i: warper(depth[i]), setup.t_hq, enabled=enabled)(0, dt)  # warm-up (numba compile)
-    wall, cpu = {False: [], True: []}, {False: [], True: []}
+
+    def reference(kind):
+        moved = None
+        if kind == "flow":
+            moved = _flow_motion(setup, warper, lambda i: depth[i], lambda i: color[i])  # frames in memory
+        return MotionReference(lambda i: warper(depth[i]), setup.t_hq, enabled=kind != "plain", moved=moved)
+
+    kinds = ("plain", "edges", "flow")
+    for k in kinds:
+        reference(k)(0, dt)  # warm-up (numba compile)
+    wall, cpu = {k: [] for k in kinds}, {k: [] for k in kinds}
     for _ in range(3):
-        for enabled in (False, True):
-            ref = MotionReference(lambda i: warper(depth[i]), setup.t_hq, enabled=enabled)
+        for k in kinds:
+            ref = reference(k)
             t0, c0 = time.perf_counter(), time.process_time()
             for i in range(n):
                 ref(i, dt)
-            wall[enabled].append(n / (time.perf_counter() - t0))
-            cpu[enabled].append(n / (time.process_time() - c0))
-    return (max(wall[False]), max(wall[True])), (max(cpu[False]), max(cpu[True]))
+            wall[k].append(n / (time.perf_counter() - t0))
+            cpu[k].append(n / (time.process_time() - c0))
+    return {k: max(v) for k, v in wall.items()}, {k: max(v) for k, v in cpu.items()}
 
 
 def main() -> None:
@@ -116,23 +141,25 @@ def main() -> None:
                     help="the reference's edge rule, align.reference_edges (default: %(default)s, as align)")
     args = ap.parse_args()
     cv2.setNumThreads(1)
-    print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated MAE / RMSE / >50 mm | masked by the "
-          "motion | net reference pixels lost |")
-    print("|---|---|---|---|---|---|")
+    print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated (edges) MAE / RMSE / >50 mm | masked by "
+          "the motion | net reference pixels lost | scene flow MAE / RMSE / >50 mm | net lost (flow) |")
+    print("|---|---|---|---|---|---|---|---|")
     for root in args.sessions:
         rule = EdgeRule.named(args.edges)
         setup, warper, tr, pairs = _pairs(root, args.frames, rule)
         s = _scores(setup, warper, tr, pairs, rule)
         dts = np.array([abs(p[2]) for p in pairs]) / 1000
-        (pm, pr, pb, _, _), (cm, cr, cb, masked, lost) = s["plain"], s["compensated"]
+        (pm, pr, pb, _, _), (cm, cr, cb, masked, lost), (fm, fr, fb, _, flost) = s["plain"], s["compensated"], s["flow"]
         print(f"| {root} | {dts.min():.1f}-{dts.max():.1f} | {pm:.1f} / {pr:.1f} mm / {pb:.2f} % | "
-              f"{cm:.1f} / {cr:.1f} mm / {cb:.2f} % | {masked:.2f} % | {lost:.2f} % |", flush=True)
+              f"{cm:.1f} / {cr:.1f} mm / {cb:.2f} % | {masked:.2f} % | {lost:.2f} % | "
+              f"{fm:.1f} / {fr:.1f} mm / {fb:.2f} % | {flost:.2f} % |", flush=True)
     if args.speed_frames > 0:
-        (plain, moved), (plain_cpu, moved_cpu) = _throughput(setup, warper, args.speed_frames)
-        print(f"\nthroughput ({args.sessions[-1]}, {args.speed_frames} consecutive pairs, one thread, best of 3): "
-              f"plain warp {plain:.1f} pairs/s, compensated {moved:.1f} pairs/s, ratio {moved / plain:.2f} "
-              f"(wall clock); "
-              f"{plain_cpu:.1f} / {moved_cpu:.1f} pairs/s, ratio {moved_cpu / plain_cpu:.2f} (CPU time)")
+        wall, cpu = _throughput(setup, warper, args.speed_frames)
+        print(f"\nthroughput ({args.sessions[-1]}, {args.speed_frames} consecutive pairs, one thread, best of 3, "
+              f"pairs/s; ratio to the plain warp):")
+        for k in ("edges", "flow"):
+            print(f"  {k:5s}: wall clock plain {wall['plain']:.1f}, {k} {wall[k]:.1f}, ratio {wall[k] / wall['plain']:.2f}; "
+                  f"CPU time plain {cpu['plain']:.1f}, {k} {cpu[k]:.1f}, ratio {cpu[k] / cpu['plain']:.2f}")
 
 if __name__ == "__main__":
     main()

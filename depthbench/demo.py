@@ -114,26 +114,59 @@ def plan(out: Path, config: DemoConfig, *, force: bool) -> list[DemoStep]:
                  command=_command("align", session, "--out", aligned, probes, no_report, f),
                  call=partial(align_session, session, aligned, force=force, progress=progress, **align_opts)),
     ]
-    params, weights_args = {}, ""
+    trained: dict[str, dict] = {}
     if config.learned:   # the corpora first: the longest chains start at once
-        corpora, trainings, params = _learned_steps(out, config, force=force, progress=progress)
+        corpora, trainings, trained = _learned_steps(out, config, force=force, progress=progress)
         steps = corpora + steps + trainings
-        if config.methods != "all":
-            params = {k: v for k, v in params.items() if k in config.methods.split(",")}
-        weights_args = " ".join(f"--param {m}.weights={p['weights']}" for m, p in params.items())
+    return steps + _bench_steps(aligned, results, config, trained, force=force)
+
+
+def _weights_args(params: dict) -> str:
+    return " ".join(f"--param {m}.weights={p['weights']}" for m, p in params.items())
+
+
+def _bench_steps(aligned: Path, results: Path, config: DemoConfig, trained: dict[str, dict], *,
+                 force: bool) -> list[DemoStep]:
+    """The benchmark. Without trainings, or for a chosen list of methods: one run. With every method
+    and the trainings: one run per group into the same results folder, each as soon as its methods
+    are trained (the filters once the session is aligned), chained so that two runs never write the
+    folder at once; each continues the folder (:mod:`bench.runner`: rows already computed are reused)
+    and the last, after the last training in ``trained``, scores it and writes the leaderboard."""
+    from bench.runner import run_benchmark
+    from methods.registry import available
+
+    f = "--force" if force else ""
+    jobs = "" if config.jobs is None else f"--jobs {config.jobs}"
+    no_report = "" if config.reports else "--no-report"
+    wanted = None if config.methods == "all" else set(config.methods.split(","))
+    params = {m: p for ps in trained.values() for m, p in ps.items() if wanted is None or m in wanted}
+    steps: list[DemoStep] = []
+    if wanted is None and trained:
+        filters = ",".join(n for n, cls in available().items() if not cls.needs_weights())
+        groups = [("the filters", filters, {}, "align HQ onto LQ")]
+        groups += [(", ".join(ps), ",".join(ps), ps, step) for step, ps in list(trained.items())[:-1]]
+        for label, names, ps, after in groups:
+            first = not steps
+            steps.append(DemoStep(
+                name=f"benchmark {label}", output=results, needs=(after,) + tuple(s.name for s in steps[-1:]),
+                command=_command("bench run --data", aligned, "--methods", names, _weights_args(ps), "--out", results,
+                                 "--jobs 1 --no-report", f if first else ""),
+                call=partial(run_benchmark, [aligned], names, results, force=force and first, jobs=1, progress=False,
+                             report=False, params=ps)))
+    needs = ("align HQ onto LQ",) + tuple(trained) + tuple(s.name for s in steps[-1:])
     steps.append(DemoStep(
-        name="benchmark every method", output=results, needs=tuple(s.name for s in steps),
-        command=_command("bench run --data", aligned, "--methods", config.methods, weights_args, "--out", results,
-                         jobs, no_report, f),
-        call=partial(run_benchmark, [aligned], config.methods, results, force=force, jobs=config.jobs,
+        name="benchmark every method", output=results, needs=needs,
+        command=_command("bench run --data", aligned, "--methods", config.methods, _weights_args(params), "--out",
+                         results, jobs, no_report, "" if steps else f),
+        call=partial(run_benchmark, [aligned], config.methods, results, force=force and not steps, jobs=config.jobs,
                      progress=None if config.progress else False, report=config.reports, params=params)))
     return steps
 
 
 def _learned_steps(out: Path, config: DemoConfig, *, force: bool,
-                   progress: bool) -> tuple[list[DemoStep], list[DemoStep], dict]:
-    """Two corpora (other seeds than the benchmark session), the tiny trainings on them, and the
-    benchmark's ``params`` naming the trained weights."""
+                   progress: bool) -> tuple[list[DemoStep], list[DemoStep], dict[str, dict]]:
+    """Two corpora (other seeds than the benchmark session), the tiny trainings on them, and per
+    training step the benchmark's ``params`` naming its trained weights (SSDD's step last)."""
     from bench.corpus import CorpusSpec, make_corpus
     from bench.executors import ExecutorSpec
     from methods.nn.train import train_method
@@ -173,8 +206,10 @@ def _learned_steps(out: Path, config: DemoConfig, *, force: bool,
             command=_command("methods train", method, "--dataset", data / "training.json", "--config tiny --out", run, f),
             call=partial(train_method, method, dataset=data / "training.json", config="tiny", out=run, force=force,
                          progress=progress)))
-        params.update({m: {"weights": str(run / f"{m}.safetensors")} for m in trained})
-    return corpora, trainings, params
+        params[trainings[-1].name] = {m: {"weights": str(run / f"{m}.safetensors")} for m in trained}
+    # the benchmark scores each training's methods when it ends; SSDD, the longest, last (see _bench_steps)
+    first = trainings[0].name
+    return corpora, trainings, {**{k: v for k, v in params.items() if k != first}, first: params[first]}
 
 
 def _worker_init() -> None:

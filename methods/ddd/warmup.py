@@ -53,10 +53,14 @@ def smoothed_input(depth: torch.Tensor, mask: torch.Tensor, *, sigma_px: float) 
     r = max(1, int(3 * sigma_px))
     x = torch.arange(-r, r + 1, dtype=depth.dtype, device=depth.device)
     g = torch.exp(-x * x / (2 * sigma_px * sigma_px))
-    k = (g[:, None] * g[None, :])[None, None]
     m = mask.to(depth.dtype)
-    num = F.conv2d(depth * m, k, padding=r)
-    den = F.conv2d(m, k, padding=r)
+
+    def blur(img: torch.Tensor) -> torch.Tensor:   # separable: a column pass, then a row pass
+        img = F.conv2d(img, g.view(1, 1, -1, 1), padding=(r, 0))
+        return F.conv2d(img, g.view(1, 1, 1, -1), padding=(0, r))
+
+    num = blur(depth * m)
+    den = blur(m)
     return torch.where(den > 1e-6, num / den.clamp_min(1e-6), torch.zeros_like(num))
 
 

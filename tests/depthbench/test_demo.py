@@ -90,3 +90,29 @@ def _sleep_then_write(path, text):
 
     time.sleep(0.5)
     path.write_text(text)
+
+
+def test_learned_demo_benchmarks_each_training_as_it_ends_in_one_chain_into_one_folder(tmp_path):
+    """With the trainings, the benchmark is one run per group into the same results folder: the filters
+    after the alignment, each training's methods after it, chained (never two writers at once); only
+    the first may replace the folder, the last (after every training) scores every method with a report."""
+    from depthbench.demo import plan
+
+    steps = plan(tmp_path / "d", DemoConfig(seconds=1, probes=6), force=True)
+    names = [s.name for s in steps]
+    benches = [s for s in steps if s.name.startswith("benchmark")]
+    trainings = [s.name for s in steps if s.name.startswith("train ")]
+    assert len(trainings) == 3 and [b.output for b in benches] == [tmp_path / "d" / "results"] * 4
+    assert benches[0].needs == ("align HQ onto LQ",) and "--force" in benches[0].command
+    assert benches[0].call.keywords["force"] and not any(b.call.keywords["force"] for b in benches[1:])
+    for prev, b in zip(benches, benches[1:]):
+        assert prev.name in b.needs and names.index(prev.name) < names.index(b.name)
+        assert "--force" not in b.command
+    assert "ssdd" not in " ".join(b.call.args[1] for b in benches[:-1])          # SSDD, the longest, last
+    last = benches[-1]
+    assert last.name == "benchmark every method" and set(trainings) <= set(last.needs)
+    assert last.call.args[1] == "all" and last.call.keywords["report"]
+    assert set(last.call.keywords["params"]) == {"ddrnet", "ddrnet_refine", "ddd", "ssdd_unet", "ssdd_lstm"}
+    for b in benches[1:-1]:
+        assert b.call.args[1].split(",") == list(b.call.keywords["params"])
+        assert any(t in b.needs for t in trainings)

@@ -57,7 +57,8 @@ class Level2Config:
 
     def __post_init__(self) -> None:
         if self.level1_input not in LEVEL1_INPUTS:
-            raise ValueError(f"level2.level1_input must be one of {', '.join(LEVEL1_INPUTS)}, got {self.level1_input!r}")
+            raise ValueError(f"level2.level1_input must be one of {', '.join(LEVEL1_INPUTS)}, "
+                             f"got {self.level1_input!r}")
         if not self.model.recurrent:
             raise ValueError("level2.model.recurrent must name at least one level (-1 = bottleneck)")
 

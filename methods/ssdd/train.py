@@ -71,7 +71,7 @@ def prefiltered(datasets: list[AlignedDataset], cfg: Level1Config) -> dict[str, 
 
 
 def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset], validation: list[AlignedDataset],
-                folder: str, name: str, pre: dict | None) -> SSDDUNet:
+                folder: str, name: str, *, pre: dict | None = None) -> SSDDUNet:
     holes = ctx.config.loss_on_holes
     job = FitJob(name=name, model=seeded(lambda: SSDDUNet(cfg.model, base=cfg.prefilter.enabled), cfg.optim.seed),
                  loss=level1_loss(cfg.data, holes=holes),
@@ -120,7 +120,7 @@ def train_unet(ctx: RunContext) -> dict[str, Path]:
     cfg: SSDDConfig = ctx.config
     train, validation = ctx.manifest.split("train"), ctx.manifest.split("validation")
     final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1",
-                        prefiltered(train + validation, cfg.level1))
+                        pre=prefiltered(train + validation, cfg.level1))
     return {"ssdd_unet": ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))}
 
 
@@ -138,7 +138,7 @@ def out_of_fold(ctx: RunContext, cfg: SSDDConfig,
         fit_on = [ds for ds, g in zip(train, folds) if g != f]
         held = [ds for ds, g in zip(train, folds) if g == f]
         model = _fit_level1(ctx, cfg.level1, fit_on, ctx.manifest.split("validation"), f"level1/fold{f}",
-                            f"level 1 fold {f + 1}/{cfg.folds}", pre)
+                            f"level 1 fold {f + 1}/{cfg.folds}", pre=pre)
         models.append(model)
         for ds in held:
             preds[ds.checksum] = predict_level1(model, ds, cfg.level1, pre=pre)
@@ -158,7 +158,7 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
         atomic_write_json(ctx.out / OOF_JSON, record)
         save_tensors(ctx.out / OOF_PREDICTIONS, {k: torch.from_numpy(v) for k, v in oof.items()}, kind="predictions",
                      meta={"what": "out-of-fold level-1 predictions (metres) by dataset checksum", "oof": record})
-    final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1 final", pre)
+    final = _fit_level1(ctx, cfg.level1, train, validation, "level1/final", "level 1 final", pre=pre)
     unet_weights = ctx.save_weights("ssdd_unet", _prefixed(final, "level1/"))
     l2 = cfg.level2
     feeders = fold_models if l2.level1_input == "fold_mean" else [final]   # level 2's level 1 at inference

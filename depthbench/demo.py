@@ -132,12 +132,8 @@ def _bench_steps(aligned: Path, results: Path, config: DemoConfig, trained: dict
     are trained (the filters once the session is aligned), chained so that two runs never write the
     folder at once; each continues the folder (:mod:`bench.runner`: rows already computed are reused)
     and the last, after the last training in ``trained``, scores it and writes the leaderboard."""
-    from bench.runner import run_benchmark
     from methods.registry import available
 
-    f = "--force" if force else ""
-    jobs = "" if config.jobs is None else f"--jobs {config.jobs}"
-    no_report = "" if config.reports else "--no-report"
     wanted = None if config.methods == "all" else set(config.methods.split(","))
     params = {m: p for ps in trained.values() for m, p in ps.items() if wanted is None or m in wanted}
     steps: list[DemoStep] = []
@@ -146,21 +142,27 @@ def _bench_steps(aligned: Path, results: Path, config: DemoConfig, trained: dict
         groups = [("the filters", filters, {}, "align HQ onto LQ")]
         groups += [(", ".join(ps), ",".join(ps), ps, step) for step, ps in list(trained.items())[:-1]]
         for label, names, ps, after in groups:
-            first = not steps
-            steps.append(DemoStep(
-                name=f"benchmark {label}", output=results, needs=(after,) + tuple(s.name for s in steps[-1:]),
-                command=_command("bench run --data", aligned, "--methods", names, _weights_args(ps), "--out", results,
-                                 "--jobs 1 --no-report", f if first else ""),
-                call=partial(run_benchmark, [aligned], names, results, force=force and first, jobs=1, progress=False,
-                             report=False, params=ps)))
+            steps.append(_bench_step(f"benchmark {label}", aligned, results, names, ps,
+                                     needs=(after,) + tuple(s.name for s in steps[-1:]), force=force and not steps))
     needs = ("align HQ onto LQ",) + tuple(trained) + tuple(s.name for s in steps[-1:])
-    steps.append(DemoStep(
-        name="benchmark every method", output=results, needs=needs,
-        command=_command("bench run --data", aligned, "--methods", config.methods, _weights_args(params), "--out",
-                         results, jobs, no_report, "" if steps else f),
-        call=partial(run_benchmark, [aligned], config.methods, results, force=force and not steps, jobs=config.jobs,
-                     progress=None if config.progress else False, report=config.reports, params=params)))
+    steps.append(_bench_step("benchmark every method", aligned, results, config.methods, params, needs=needs,
+                             force=force and not steps, jobs=config.jobs, report=config.reports,
+                             progress=None if config.progress else False))
     return steps
+
+
+def _bench_step(name: str, aligned: Path, results: Path, methods: str, params: dict, *, needs: tuple, force: bool,
+                jobs: int | None = 1, report: bool = False, progress: bool | None = False) -> DemoStep:
+    """One ``bench run`` of ``methods`` into ``results``, as a step and as the command it stands for."""
+    from bench.runner import run_benchmark
+
+    return DemoStep(
+        name=name, output=results, needs=needs,
+        command=_command("bench run --data", aligned, "--methods", methods, _weights_args(params), "--out", results,
+                         "" if jobs is None else f"--jobs {jobs}", "" if report else "--no-report",
+                         "--force" if force else ""),
+        call=partial(run_benchmark, [aligned], methods, results, force=force, jobs=jobs, progress=progress,
+                     report=report, params=params))
 
 
 def _learned_steps(out: Path, config: DemoConfig, *, force: bool,

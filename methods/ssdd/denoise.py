@@ -60,17 +60,17 @@ class _SSDDBase(LearnedDenoiser):
         import torch
 
         from methods.nn.checkpoint import decode_tensors, load_state
-        from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
         from methods.ssdd.config import FOLD_PREFIX
+        from methods.ssdd.model import build_level1
+        from methods.ssdd.networks import SSDDLSTMUNet
 
         f = decode_tensors(self.weights_bytes(), where=self.weights_path, kind="weights")
         dev = torch.device(resolve_device(self.device))
-        level1 = lambda: SSDDUNet(self.config.level1.model, base=self.config.level1.prefilter.enabled)  # noqa: E731
-        nets = {"level1": level1()}
+        nets = {"level1": build_level1(self.config.level1)}
         if self.levels == 2:
             nets["level2"] = SSDDLSTMUNet(self.config.level2.model)
             if self.config.level2.level1_input == "fold_mean":
-                nets.update({f"{FOLD_PREFIX}{k}": level1() for k in range(self.config.folds)})
+                nets.update({f"{FOLD_PREFIX}{k}": build_level1(self.config.level1) for k in range(self.config.folds)})
         for name, net in nets.items():
             load_state(net, f.prefixed(f"{name}/"), where=self.weights_path)
             net.to(dev).eval()

@@ -37,6 +37,12 @@ def absolute_code(net, depth: torch.Tensor) -> torch.Tensor | None:
     return torch.where(torch.isfinite(depth), depth / ABSOLUTE_REF_M - 1.0, torch.zeros_like(depth))
 
 
+def build_level1(cfg) -> SSDDUNet:
+    """A level-1 net for ``cfg`` (:class:`methods.ssdd.config.Level1Config`): it takes the prefiltered
+    base as an input when ``cfg.prefilter`` is on."""
+    return SSDDUNet(cfg.model, base=cfg.prefilter.enabled)
+
+
 def level1_depth(net: SSDDUNet, depth: torch.Tensor, rgb: torch.Tensor | None, data: DataConfig,
                  base: torch.Tensor | None = None) -> torch.Tensor:
     """Level 1 on ``depth`` ``(..., 1, H, W)`` metres (and ``rgb`` ``(..., 3, H, W)`` in [0, 1]) -> metres.

@@ -33,7 +33,7 @@ from methods.nn.data import AlignedSamples
 from methods.nn.train import RunContext, Trainer, register_trainer
 from methods.nn.trainer import FitJob, seeded
 from methods.ssdd.config import FOLD_PREFIX, Level1Config, SSDDConfig
-from methods.ssdd.model import PREFILTERED, level1_depth, level1_loss, level2_loss
+from methods.ssdd.model import PREFILTERED, build_level1, level1_depth, level1_loss, level2_loss
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 from methods.ssdd.prefilter import prefilter_frames
 
@@ -73,7 +73,7 @@ def prefiltered(datasets: list[AlignedDataset], cfg: Level1Config) -> dict[str, 
 def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset], validation: list[AlignedDataset],
                 folder: str, name: str, *, pre: dict | None = None) -> SSDDUNet:
     holes = ctx.config.loss_on_holes
-    job = FitJob(name=name, model=seeded(lambda: SSDDUNet(cfg.model, base=cfg.prefilter.enabled), cfg.optim.seed),
+    job = FitJob(name=name, model=seeded(lambda: build_level1(cfg), cfg.optim.seed),
                  loss=level1_loss(cfg.data, holes=holes),
                  train=_samples(train, cfg.data, seed=cfg.optim.seed, train=True, extra=pre),
                  validation=_samples(validation, cfg.data, seed=cfg.optim.seed, train=False, extra=pre),

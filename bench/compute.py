@@ -24,7 +24,7 @@ import pandas as pd
 
 from align.dataset import AlignedDataset, AlignedFrame
 from bench.errors import BenchError
-from bench.metrics import BINNED, UNITS, MetricConfig, fit_reference_planes, frame_metrics
+from bench.metrics import BINNED, UNITS, MetricConfig, fit_reference_planes, frame_metrics, moving_mask
 from bench.results import SCHEMA_VERSION
 from methods.base import FrameInput, MethodNeeds
 from methods.run import DenoisedFrame, FrameRunner, read_input
@@ -135,13 +135,14 @@ class _Scoring:
     refs: dict
     planes: dict
     waiting: int
+    moving: np.ndarray | None = None
 
 
 class _TaskScorer:
     """Scores methods' outputs frame by frame into a :class:`FrameOutput`."""
 
     def __init__(self, task: FrameTask, ds: AlignedDataset, threads: int) -> None:
-        self.task, self.K, self.threads = task, ds.lq_intrinsics, threads
+        self.task, self.ds, self.K, self.threads = task, ds, ds.lq_intrinsics, threads
         self.out = FrameOutput()
         self.held: dict[int, _Scoring] = {}
 
@@ -154,10 +155,19 @@ class _TaskScorer:
                                              min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio,
                                              threads=self.threads)
                   for name, ref in refs.items()}
-        held = _Scoring(frame=fr, refs=refs, planes=planes, waiting=waiting)
+        held = _Scoring(frame=fr, refs=refs, planes=planes, waiting=waiting, moving=self._moving(fr))
         if waiting:      # released when the last awaited output is scored
             self.held[fr.index] = held
         return held
+
+    def _moving(self, fr: AlignedFrame) -> np.ndarray | None:
+        """The frame's moving pixels (:func:`bench.metrics.moving_mask`): from the truth where the dataset has
+        one, else from the reference; None for the first frame."""
+        if fr.index == 0:
+            return None
+        now, before = (fr.truth, self.ds.truth(fr.index - 1)) if fr.truth is not None else \
+            (fr.reference, self.ds.reference(fr.index - 1))
+        return moving_mask(now, before, threshold_m=self.task.config.moving_threshold_m)
 
     def score(self, method, frame: int, pred: np.ndarray | None, refs: dict | None = None) -> None:
         """Score ``pred`` (None: the frame lacks an input the method needs) against ``refs`` (default: all)."""
@@ -184,7 +194,7 @@ class _TaskScorer:
             metrics["n_reference"] = float(held.planes[name].index.size)
             return metrics, []
         return frame_metrics(pred, ref, self.K, roi=held.frame.roi, config=self.task.config,
-                             planes=held.planes[name], threads=self.threads)
+                             planes=held.planes[name], threads=self.threads, moving=held.moving)
 
 
 def compute_frame(task: FrameTask) -> FrameOutput:

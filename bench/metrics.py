@@ -16,6 +16,12 @@ neighbourhood; defined, and computed exactly, in :mod:`bench.plane_fit` (re-expo
 
 Normal angle: the mean angle between central-difference normals of prediction and reference.
 
+Moving stratum (:func:`moving_mask`): the pixels of ``M`` whose scene depth changed by more than
+``MetricConfig.moving_threshold_m`` (1 cm) since the previous frame, from the simulator's truth
+where the dataset has one, else from the reference; ``mse_moving_mm2`` / ``mae_moving_mm`` are the
+errors over them (SSDD's level 2 is meant to win on moving content). The first frame of a sequence
+has no previous frame: its moving metrics are NaN.
+
 :func:`frame_metrics` gives every metric of one frame, overall and per reference-depth bin.
 """
 from __future__ import annotations
@@ -38,6 +44,7 @@ UNITS = {
     "plane_fit_rmse_mm": "mm", "plane_fit_n": "count", "plane_fit_excluded_few": "count",
     "plane_fit_excluded_degenerate": "count", "plane_fit_excluded": "count",
     "plane_fit_neighbors_median": "count", "normal_angle_deg": "deg",
+    "n_moving": "count", "mse_moving_mm2": "mm^2", "mae_moving_mm": "mm",
 }
 #: Metrics also given per reference-depth bin.
 BINNED = ("n_valid", "mae_mm", "rmse_mm", "plane_fit_n", "plane_fit_rmse_mm", "plane_fit_excluded")
@@ -53,18 +60,23 @@ class MetricConfig:
         min_spread_ratio: a neighbourhood whose second-largest standard deviation is below this
             fraction of its largest is a line, not a plane, and is excluded.
         depth_bin_m: width of the reference-depth bins of the error-against-depth rows.
+        moving_threshold_m: a pixel is "moving" when its depth changed by more than this since the
+            previous frame (:func:`moving_mask`).
     """
 
     radius_m: float = 0.005
     min_neighbors: int = 3
     min_spread_ratio: float = 0.1
     depth_bin_m: float = 0.25
+    moving_threshold_m: float = 0.01
 
     def __post_init__(self) -> None:
         check_plane_parameters(radius_m=self.radius_m, min_neighbors=self.min_neighbors,
                                min_spread_ratio=self.min_spread_ratio)
         if not (np.isfinite(self.depth_bin_m) and self.depth_bin_m > 0):
             raise MetricInputError(f"depth_bin_m must be positive, got {self.depth_bin_m}")
+        if not (np.isfinite(self.moving_threshold_m) and self.moving_threshold_m >= 0):
+            raise MetricInputError(f"moving_threshold_m must be non-negative, got {self.moving_threshold_m}")
 
     def to_dict(self) -> dict:
         return {k: (int(v) if k == "min_neighbors" else float(v)) for k, v in asdict(self).items()}
@@ -98,6 +110,27 @@ def rmse_mm(pred, ref, roi=None) -> float:
 def mae_mm(pred, ref, roi=None) -> float:
     """Mean absolute error in mm over pixels valid in both (inside ``roi``)."""
     return pixel_errors(pred, ref, roi)["mae_mm"]
+
+
+def moving_mask(depth: np.ndarray, previous: np.ndarray, *, threshold_m: float) -> np.ndarray:
+    """``(H, W)`` bool: pixels whose depth changed by more than ``threshold_m`` metres since ``previous``,
+    ``|depth - previous| > threshold_m``, where both hold a measurement (a pixel that appears or vanishes
+    is not counted: in a reference that is mostly hole flicker)."""
+    if depth.shape != previous.shape:
+        raise MetricInputError(f"depth {depth.shape} and previous depth {previous.shape} must have the same size")
+    with np.errstate(invalid="ignore"):
+        change = np.abs(depth.astype(np.float64) - previous.astype(np.float64))
+    return finite_positive(depth) & finite_positive(previous) & (change > threshold_m)
+
+
+def moving_errors(pred: np.ndarray, ref: np.ndarray, moving: np.ndarray | None,
+                  roi: np.ndarray | None = None) -> dict[str, float]:
+    """``n_moving``, ``mse_moving_mm2``, ``mae_moving_mm``: :func:`pixel_errors` over the pixels ``M`` that
+    are in ``moving`` (:func:`moving_mask`); all NaN when ``moving`` is None (no previous frame)."""
+    if moving is None:
+        return {"n_moving": np.nan, "mse_moving_mm2": np.nan, "mae_moving_mm": np.nan}
+    pe = pixel_errors(pred, ref, moving if roi is None else moving & roi.astype(bool))
+    return {"n_moving": float(pe["n_valid"]), "mse_moving_mm2": pe["mse_mm2"], "mae_moving_mm": pe["mae_mm"]}
 
 
 def fill_rate(pred: np.ndarray, ref: np.ndarray, roi: np.ndarray | None = None) -> float:
@@ -180,7 +213,7 @@ def normal_angle_deg(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, 
 # --------------------------------------------------------------------------------- one frame
 def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, roi: np.ndarray | None = None,
                   config: MetricConfig = MetricConfig(), planes: ReferencePlanes | None = None,
-                  plane_fit_method: str = "auto", threads: int = 1) -> tuple[dict[str, float], list[dict[str, float]]]:
+                  plane_fit_method: str = "auto", threads: int = 1, moving: np.ndarray | None = None) -> tuple[dict[str, float], list[dict[str, float]]]:
     """Every metric of one frame against one reference.
 
     Args:
@@ -191,6 +224,7 @@ def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, 
         planes: :func:`fit_reference_planes` of ``ref``/``roi`` with ``config`` (reused across methods).
         plane_fit_method: ``"auto"``, ``"grid"`` or ``"kdtree"`` (equal results).
         threads: threads for the plane fit (results do not depend on it).
+        moving: ``(H, W)`` bool :func:`moving_mask` of the frame (None: no previous frame, moving metrics NaN).
 
     Returns:
         ``(metrics, bins)``: ``metrics`` maps every name of :data:`UNITS` to a float; ``bins`` lists
@@ -209,6 +243,7 @@ def frame_metrics(pred: np.ndarray, ref: np.ndarray, intrinsics: Intrinsics, *, 
     out["n_valid"] = float(pe.pop("n_valid"))
     out["fill_rate"] = out["n_valid"] / out["n_reference"] if out["n_reference"] else float("nan")
     out.update(pe)
+    out.update(moving_errors(pred, ref, moving, roi))
     pf = plane_fit_rmse(pred, ref, intrinsics, roi=roi, planes=planes, threads=threads)
     out["plane_fit_rmse_mm"] = pf.rmse_mm
     out["plane_fit_n"] = float(pf.n_used)

@@ -56,6 +56,7 @@ PUBLISHED_NOTE = ("Published numbers of the seed report's Table I, on other data
 SUMMARY_METRICS = {
     "mse_mm2": "MSE (mm²)", "rmse_mm": "RMSE (mm)", "mae_mm": "MAE (mm)",
     "plane_fit_rmse_mm": "plane-fit RMSE (mm)", "fill_rate": "fill rate (%)", "normal_angle_deg": "normal angle (°)",
+    "mse_moving_mm2": "MSE, moving pixels (mm²)", "mae_moving_mm": "MAE, moving pixels (mm)",
 }
 SEQUENCE_METRICS = ("rmse_mm", "mae_mm", "plane_fit_rmse_mm", "fill_rate")
 #: Depth bins holding less than this share of a method's scored pixels are left out of the plots.
@@ -261,7 +262,10 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
              f"({n_boot} resamples of the frames, seed {seed}, the same resamples for every column). "
              "Errors are over pixels valid in both the method's output and the reference, inside the ROI; "
              "the fill rate is the share of reference pixels the method leaves valid. (n=k): the value exists on k "
-             "frames only (a method that needs colour on frames without it, or frames where nothing is scored).",
+             "frames only (a method that needs colour on frames without it, or frames where nothing is scored). "
+             "Moving pixels: those whose depth changed by more than the moving threshold since the previous frame, "
+             "in the truth where the dataset has one, else in the HQ reference (`bench.metrics.moving_mask`; "
+             "the first frame has none).",
              cls="note")
     if truth:
         doc.para("The **HQ sensor** column scores the warped HQ depth itself against the truth: the part of every "

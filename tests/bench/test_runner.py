@@ -53,10 +53,12 @@ def test_table_has_one_row_per_method_dataset_frame_reference_metric(datasets, t
     assert (t["schema_version"] == R.SCHEMA_VERSION).all()
     # rows agree with the metric functions on the frame itself
     from align.dataset import AlignedDataset
-    from bench.metrics import frame_metrics
+    from bench.metrics import frame_metrics, moving_mask
     ds = AlignedDataset(a)
     fr = ds.frame(1)
-    want, _ = frame_metrics(fr.lq_depth, fr.reference, ds.lq_intrinsics, roi=fr.roi, config=SMALL_CONFIG)
+    moving = moving_mask(fr.truth, ds.truth(0), threshold_m=SMALL_CONFIG.moving_threshold_m)   # A has truth
+    want, _ = frame_metrics(fr.lq_depth, fr.reference, ds.lq_intrinsics, roi=fr.roi, config=SMALL_CONFIG,
+                            moving=moving)
     got = frame_rows[(frame_rows["method"] == "raw") & (frame_rows["dataset"] == "A") & (frame_rows["frame"] == 1)
                      & (frame_rows["reference"] == "hq")].set_index("metric")["value"]
     for k, v in want.items():

@@ -65,7 +65,7 @@ class DemoConfig:
     whole demo, training included, within minutes on two cores), the benchmark's ``methods`` and local
     ``jobs`` (also the demo's worker processes; None: 2); ``probes`` and ``reports`` shrink a test run."""
 
-    seconds: float = 3.0
+    seconds: float = 2.0
     seed: int = 0
     time_shift_ms: float | None = None
     scale: float = 0.5
@@ -75,7 +75,8 @@ class DemoConfig:
     probes: int | None = None      # HQ frames that fit the time shift and extrinsics (None: align's default)
     reports: bool = True           # the alignment report and the leaderboard's Markdown/HTML/figures
     learned: bool = True           # train SSDD, DDRNet and DDD (tiny) and score them too
-    corpus_seconds: float = 2.0    # scene time per training sequence (three sequences: two train, one validation)
+    corpus_sequences: int = 5      # training corpus: sequences (the last one validation), scenes alternating
+    corpus_seconds: float = 1.2    # scene time per training sequence
     multiview_seconds: float = 1.0  # scene time of DDD's four-view session (30 simultaneous samples at 30 fps)
 
     @property
@@ -174,7 +175,7 @@ def _learned_steps(out: Path, config: DemoConfig, *, force: bool,
     from methods.nn.train import train_method
 
     corpus, multiview = out / "corpus", out / "corpus_multiview"
-    seeds = tuple(1000 + 10 * config.seed + k for k in (1, 2, 3))
+    seeds = tuple(1000 + 10 * config.seed + k for k in range(1, config.corpus_sequences + 1))
     mv_seed = 2000 + 10 * config.seed + 1
     common = dict(scale=config.scale, probes=config.probes)
     spec = CorpusSpec(seeds=seeds, seconds=config.corpus_seconds, validation=1, test=0,
@@ -281,7 +282,7 @@ def _finish(step: DemoStep, fut: Future, pool: ProcessPoolExecutor) -> None:
     _say(step, "done")
 
 
-def run_demo(out: str | Path, *, seconds: float = 3.0, seed: int = 0, force: bool = False,
+def run_demo(out: str | Path, *, seconds: float = DemoConfig.seconds, seed: int = 0, force: bool = False,
              time_shift_ms: float | None = None, config: DemoConfig | None = None) -> DemoResult:
     """Run the stages into ``out`` (``session/``, ``aligned/``, ``results/``; with ``learned``, also
     ``corpus/``, ``corpus_multiview/`` and ``runs/``), independent ones side by side.
@@ -314,7 +315,8 @@ def register(subparsers) -> None:
         description="Simulate a RealSense-like LQ sensor beside a Kinect-like HQ sensor, align them, run every "
                     "registered denoising method and write the leaderboard. Takes a few minutes on two cores.")
     p.add_argument("--out", required=True, help="output folder (session/, aligned/, results/ inside)")
-    p.add_argument("--seconds", type=float, default=3.0, help="seconds of scene time to simulate (default 3)")
+    p.add_argument("--seconds", type=float, default=DemoConfig.seconds,
+                   help=f"seconds of scene time to simulate (default {DemoConfig.seconds:g})")
     p.add_argument("--seed", type=int, default=0, help="random seed of the simulated scene and clocks (default 0)")
     p.add_argument("--time-shift-ms", type=float, default=25.0,
                    help="clock shift between the sensors (default 25 ms; seed 0 would draw 59 ms, on the edge of "

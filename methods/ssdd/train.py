@@ -2,7 +2,8 @@
 
 ``ssdd_unet`` trains level 1 on every training sequence. ``ssdd_lstm`` trains both levels:
 
-1. the training sequences are split into ``k`` folds (:func:`assign_folds`, seeded);
+1. the training sequences are split into ``k`` folds (:func:`assign_folds`, seeded, stratified by the
+   manifest's ``scene`` where it names one);
 2. for each fold f a level-1 model is trained on the other folds (``RUN/level1/fold<f>/``) and
    predicts every frame of fold f: those are the out-of-fold (OOF) predictions, made by a model
    that never saw the frame's sequence;
@@ -41,11 +42,20 @@ OOF_JSON = "oof.json"
 OOF_PREDICTIONS = "oof_predictions.safetensors"
 
 
-def assign_folds(datasets: list[AlignedDataset], k: int, *, seed: int) -> list[int]:
-    """Fold of each dataset (sequence): a seeded permutation dealt round-robin into ``k`` folds."""
+def assign_folds(datasets: list[AlignedDataset], k: int, *, seed: int, groups: list | None = None) -> list[int]:
+    """Fold of each dataset (sequence): a seeded permutation dealt round-robin into ``k`` folds.
+
+    ``groups`` (one label per dataset, e.g. the corpus manifest's ``scene``; None: one group) stratifies
+    the deal: the permutation is ordered by group before dealing, so every fold gets its share of each
+    group. Without it two people sequences could make one fold and two balloon sequences the other:
+    each fold model would then predict a scene it never saw, and level 2 would learn to correct
+    errors the final level-1 model (which saw every scene) does not make."""
     if k > len(datasets):
         raise TrainingError(f"folds = {k} needs at least {k} training sequences, the manifest has {len(datasets)}")
     order = np.random.default_rng([seed, 104729]).permutation(len(datasets))
+    if groups is not None:
+        labels = [str(g) for g in groups]
+        order = sorted(order, key=lambda i: labels[int(i)])      # stable: the permutation within a group
     folds = [0] * len(datasets)
     for pos, i in enumerate(order):
         folds[int(i)] = pos % k
@@ -130,7 +140,8 @@ def out_of_fold(ctx: RunContext, cfg: SSDDConfig,
     and the k fold models (``pre``: :func:`prefiltered` of the training and validation sequences,
     when level 1 has a prefilter)."""
     train = ctx.manifest.split("train")
-    folds = assign_folds(train, cfg.folds, seed=cfg.level1.optim.seed)
+    scenes = [e.info.get("scene") for e in ctx.manifest.entries if e.split == "train"]
+    folds = assign_folds(train, cfg.folds, seed=cfg.level1.optim.seed, groups=scenes)
     preds: dict[str, np.ndarray] = {}
     record = {"folds": cfg.folds, "datasets": []}
     models = []

@@ -144,3 +144,19 @@ def test_fold_mean_feeds_level2_the_mean_of_the_fold_models(tmp_path):
     ok = np.isfinite(depth)
     np.testing.assert_allclose(out[ok], expect[0, 0].numpy()[ok], rtol=0, atol=1e-5)
     assert np.abs(out[ok] - other[0, 0].numpy()[ok]).max() > 1e-5      # not what the final model would feed
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_folds_are_stratified_by_scene(seed):
+    """Every fold gets its share of each scene (floor or ceil of n_scene / k), whatever the seed; each
+    sequence is in exactly one fold."""
+    from methods.ssdd.train import assign_folds
+
+    scenes = ["people", "balloons", "people", "balloons", "people", "people", "balloons"]
+    for k in (2, 3):
+        folds = assign_folds(list(range(len(scenes))), k, seed=seed, groups=scenes)
+        assert sorted(set(folds)) == list(range(k))
+        for scene in set(scenes):
+            n = scenes.count(scene)
+            counts = [sum(1 for f, s in zip(folds, scenes) if f == g and s == scene) for g in range(k)]
+            assert sum(counts) == n and max(counts) - min(counts) <= 1, (k, scene, counts)

@@ -3,8 +3,9 @@
 ``ddrnet`` runs the denoising net alone (how DDD's comparison ran DDRNet); ``ddrnet_refine`` the
 denoising and refinement nets (the paper's pipeline), which needs the LQ colour image. Weights
 come from ``depthbench methods train ddrnet`` (``--param weights=RUN/ddrnet.safetensors``); the
-depth normalisation is the one the weights were trained with (see :class:`methods.nn.learned.LearnedDenoiser`
-for holes, the leakage guard and weight errors).
+depth normalisation and the correction gate (``model.max_correction_m``) are those of the config the
+weights were trained with (see :class:`methods.nn.learned.LearnedDenoiser` for holes, the leakage
+guard and weight errors).
 """
 from __future__ import annotations
 
@@ -27,12 +28,12 @@ class _DDRNetBase(LearnedDenoiser):
         return build(config.model, refine=self.refine)
 
     def _run(self, depth, color):
-        from methods.ddrnet.model import grey_of, run_metres
+        from methods.ddrnet.model import gate_correction, grey_of, run_metres
 
         data = self.config.data
         dn, dt = run_metres(self.runtime["net"], depth, grey_of(color) if self.refine else None,
                             d_min=data.depth_min_m, d_max=data.depth_max_m)
-        return dt if self.refine else dn
+        return gate_correction(dt if self.refine else dn, depth, max_m=self.config.model.max_correction_m)
 
 
 class DDRNetDenoise(_DDRNetBase):

@@ -26,15 +26,19 @@ LUMA = (0.299, 0.587, 0.114)
 @dataclass
 class ModelConfig:
     """``width``: denoising net's first width (32 -> 64 -> 128); ``refine_width``: hypercolumn width
-    (16 -> 32 -> 64); ``residual_refine``: refined depth = ``D_dn + tanh(.)`` (False: ``tanh(.)``, released)."""
+    (16 -> 32 -> 64); ``residual_refine``: refined depth = ``D_dn + tanh(.)`` (False: ``tanh(.)``, released);
+    ``max_correction_m``: at inference, keep the input depth wherever the output moves it by more than this
+    (0: off, the paper; :func:`gate_correction`)."""
 
     width: int = 32
     refine_width: int = 16
     residual_refine: bool = True
+    max_correction_m: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.width < 1 or self.refine_width < 4:
-            raise ValueError(f"model.width must be >= 1 and model.refine_width >= 4, got {self.width}, {self.refine_width}")
+        if self.width < 1 or self.refine_width < 4 or self.max_correction_m < 0:
+            raise ValueError(f"model.width must be >= 1, model.refine_width >= 4 and model.max_correction_m >= 0, "
+                             f"got {self.width}, {self.refine_width}, {self.max_correction_m}")
 
 
 @dataclass
@@ -102,6 +106,22 @@ def run_metres(net: DDRNet, depth: torch.Tensor, grey: torch.Tensor | None, *, d
     dn, dt = net(x, g)
     back = lambda t: None if t is None else denormalise_depth(t, d_min=d_min, d_max=d_max)  # noqa: E731
     return back(dn), back(dt)
+
+
+def gate_correction(out: torch.Tensor, depth: torch.Tensor, *, max_m: float) -> torch.Tensor:
+    """``out`` where ``|out - depth| <= max_m`` (metres) or where ``depth`` is a hole (NaN), else ``depth``;
+    ``max_m = 0``: ``out`` unchanged. Shapes ``(B, 1, H, W)``.
+
+    Not in the paper (an inference option, ``model.max_correction_m``): the training loss leaves out every
+    pixel whose reference differs from the input by more than ``loss.max_ref_diff_m`` (occlusions of the
+    warp, silhouettes), so the nets never learn a large correction, and at silhouettes they make them
+    anyway (measured: the ``tiny`` DDRNet's MSE inside the people worse than the raw depth's, from pixels
+    within 3 px of a depth edge). A denoiser's correction is a few noise sigmas; beyond the gate the
+    input is kept.
+    """
+    if not max_m:
+        return out
+    return torch.where((out - depth).abs() > max_m, depth, out)
 
 
 def _frame(batch: dict, key: str) -> torch.Tensor:

@@ -264,18 +264,19 @@ class MotionReference:
 
     def __call__(self, i: int, dt_us: float) -> tuple[np.ndarray, PairMotion]:
         """The reference of the pair (HQ frame ``i``, LQ instant ``dt_us`` after it) and how it was made."""
-        own = self.warp(i)
-        if not self.enabled or abs(dt_us) < self.min_dt_us:
-            why = "off" if not self.enabled else "frames fall together"
-            return own, PairMotion(float(dt_us), None, None, 0, int(np.isfinite(own).sum()), why)
-        br = bracket(self.t_hq_us, int(i), float(dt_us))
-        if br is None:
-            return own, PairMotion(float(dt_us), None, None, 0, int(np.isfinite(own).sum()), "no HQ neighbour")
-        a, b, alpha = br
-        if self._moved is not None:
+        br = None
+        if self.enabled and abs(dt_us) >= self.min_dt_us:
+            br = bracket(self.t_hq_us, int(i), float(dt_us))
+        if br is not None and self._moved is not None:  # scene flow: the plain warp is not needed
+            a, b, alpha = br
             ref = self._moved(int(i), b if a == i else a, alpha if a == i else 1.0 - alpha)
             if ref is not None:
                 return ref, PairMotion(float(dt_us), (a, b), alpha, 0, int(np.isfinite(ref).sum()), model="scene flow")
+        own = self.warp(i)
+        if br is None:
+            why = "off" if not self.enabled else "frames fall together" if abs(dt_us) < self.min_dt_us else "no HQ neighbour"
+            return own, PairMotion(float(dt_us), None, None, 0, int(np.isfinite(own).sum()), why)
+        a, b, alpha = br
         r = compensate_motion(self.warp(a), self.warp(b), alpha, own="a" if a == i else "b", edge_rel=self.edge_rel,
                               max_motion_px=self.max_motion_px)
         return r.depth, PairMotion(float(dt_us), (a, b), alpha, r.n_masked, int(np.isfinite(r.depth).sum()),

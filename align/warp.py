@@ -200,7 +200,7 @@ class DepthWarper:
         moved = None
         if motion is not None:
             m = np.asarray(motion, np.float32)[r0:r1, c0:c1].reshape(-1, 3)
-            moved = tuple(np.ascontiguousarray(c) for c in (m @ self.T.R.T.astype(np.float32)).T)
+            moved = tuple(self.T.R.astype(np.float32) @ m.T)  # (3, N): each row contiguous
         u, v, w, valid = self._forward(d, ws, moved)
         if motion is not None:
             d = d + m[:, 2]  # the moved points' source depth: the continuity test's input

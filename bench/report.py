@@ -409,6 +409,11 @@ def _inventory_section(doc: _Doc, df: pd.DataFrame, datasets: pd.DataFrame) -> N
     doc.table(["dataset", "sequence", "frames", "checksum"], drows)
 
 
+def _not_in_paper(provenance: dict) -> str:
+    options = provenance.get("not_in_paper") or []
+    return f"; not in the paper: {', '.join(f'`{o}`' for o in options)}" if options else ""
+
+
 def _learned_section(doc: _Doc, df: pd.DataFrame, root: Path) -> None:
     """Each learned column's weights, training manifest and config (from ``results.json``), and a loud
     warning for any column scored on its own training or validation data."""
@@ -426,7 +431,7 @@ def _learned_section(doc: _Doc, df: pd.DataFrame, root: Path) -> None:
         w, p = m.get("weights") or {}, m.get("provenance") or {}
         rows.append([label, f"`{Path(str(w.get('file', '?'))).name}` sha256 `{str(w.get('sha256', ''))[:16]}`",
                      f"{p.get('train_manifest', '?')} (`{str(p.get('train_manifest_sha256') or '')[:16]}`)",
-                     f"`{p.get('config_file', '?')}`", ", ".join(p.get("trained_on", [])) or "?"])
+                     f"`{p.get('config_file', '?')}`" + _not_in_paper(p), ", ".join(p.get("trained_on", [])) or "?"])
         if p.get("WARNING"):
             warnings.append(f"**WARNING: {label} was {p['WARNING']}; its numbers there are not a test score.**")
     doc.table(["column", "weights", "training manifest", "config", "trained / validated on"], rows)

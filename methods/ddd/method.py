@@ -16,6 +16,7 @@ class DDD(LearnedDenoiser):
     version = "1"
     description = "DDD partial-convolution autoencoder (Sterzentsenko et al. 2019), self-supervised on multi-view data; needs weights"
     trained_as = ("ddd",)
+    not_in_paper = ("warmup.steps", "model.input_scale_m", "model.highpass_px", "loss.foreground_weight")
 
     @property
     def schema(self):

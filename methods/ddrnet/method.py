@@ -15,6 +15,7 @@ from methods.nn.learned import LearnedDenoiser
 class _DDRNetBase(LearnedDenoiser):
     version = "1"
     refine = False
+    not_in_paper = ("model.max_correction_m",)
 
     @property
     def schema(self):

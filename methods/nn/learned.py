@@ -23,6 +23,17 @@ from methods.errors import CheckpointError
 log = logging.getLogger(__name__)
 
 
+def deviations(config: Any, default: Any, keys: tuple[str, ...]) -> list[str]:
+    """``"section.key = value"`` for each dotted key of ``keys`` whose value in ``config`` differs from
+    ``default`` (two instances of one config dataclass)."""
+    def get(obj: Any, key: str) -> Any:
+        for part in key.split("."):
+            obj = getattr(obj, part)
+        return obj
+
+    return [f"{k} = {get(config, k)!r}" for k in keys if get(config, k) != get(default, k)]
+
+
 class LearnedDenoiser(Denoiser):
     """Weights from ``depthbench methods train``; holes of the input stay holes unless ``fill_holes``."""
 
@@ -31,6 +42,9 @@ class LearnedDenoiser(Denoiser):
     device = "auto"
     trained_as: ClassVar[tuple[str, ...]] = ()
     schema: ClassVar[type | None] = None
+    # dotted config keys of options that are not in the paper (their default is the paper's method);
+    # provenance names those the weights were trained with at a non-default value
+    not_in_paper: ClassVar[tuple[str, ...]] = ()
     defaults = {"weights": None, "fill_holes": False, "allow_train_frames": False}
     param_help = {
         "weights": "weights file from 'depthbench methods train' (RUN/<method>.safetensors)",
@@ -78,6 +92,9 @@ class LearnedDenoiser(Denoiser):
         from methods.nn.weights import provenance
 
         out = provenance(self.meta)
+        options = deviations(self.config, self.schema(), self.not_in_paper) if self.not_in_paper else []
+        if options:
+            out["not_in_paper"] = options
         if self.leaked:
             out["WARNING"] = f"scored on its own training/validation data: {', '.join(sorted(set(self.leaked)))}"
         return out

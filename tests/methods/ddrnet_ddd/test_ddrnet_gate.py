@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from bench.report import _not_in_paper
 from methods.ddrnet.model import build, gate_correction
 from methods.ddrnet.train import DDRNetConfig
 from methods.nn.checkpoint import save_tensors
@@ -42,12 +43,18 @@ def test_ddrnet_method_applies_the_gate_of_its_weights_config(tmp_path):
     rng = np.random.default_rng(1)
     depth = rng.uniform(1.0, 3.0, (24, 32)).astype(np.float32)
     depth[3:6, 4:8] = np.nan
-    free = get("ddrnet", weights=_weights(tmp_path / "a.safetensors", plain, net)).denoise(depth)
+    plain_method = get("ddrnet", weights=_weights(tmp_path / "a.safetensors", plain, net))
+    free = plain_method.denoise(depth)
     ok = np.isfinite(depth)
     limit = float(np.median(np.abs(free - depth)[ok]))   # half the pixels beyond the gate
     gated = from_dict(DDRNetConfig, {"model": {"width": 4, "refine_width": 4, "max_correction_m": limit}}, where="test")
-    out = get("ddrnet", weights=_weights(tmp_path / "b.safetensors", gated, net)).denoise(depth)
+    gated_method = get("ddrnet", weights=_weights(tmp_path / "b.safetensors", gated, net))
+    out = gated_method.denoise(depth)
     big = ok & (np.abs(free - depth) > limit)
     assert 0 < big.sum() < ok.sum()
     assert np.array_equal(out[big], depth[big]) and np.array_equal(out[ok & ~big], free[ok & ~big])
     assert np.isnan(out[~ok]).all()
+    # the leaderboard's config column names the option (not in the paper) only where it is on
+    assert "not_in_paper" not in plain_method.provenance()
+    assert gated_method.provenance()["not_in_paper"] == [f"model.max_correction_m = {limit!r}"]
+    assert "not in the paper: `model.max_correction_m = " in _not_in_paper(gated_method.provenance())

@@ -50,9 +50,9 @@ def rank_agreement(table: pd.DataFrame, *, metric: str = "rmse_mm", exclude=("hq
     return out
 
 
-def markdown(table: pd.DataFrame) -> str:
-    """The comparison as a Markdown table."""
-    lines = ["| reference | metric | method | without the loop | with it | change | rank | |",
+def markdown(table: pd.DataFrame, *, labels: tuple[str, str] = ("without the loop", "with it")) -> str:
+    """The comparison as a Markdown table; ``labels``: the column heads of "before" and "after"."""
+    lines = [f"| reference | metric | method | {labels[0]} | {labels[1]} | change | rank | |",
              "|---|---|---|--:|--:|--:|--:|--:|"]
     for r in table.itertuples():
         ch = "" if not np.isfinite(r.change) else f"{r.change:+.2f}"

@@ -74,11 +74,12 @@ def main(argv=None) -> None:
         run_benchmark([aligned], args.methods, res, force=True, jobs=1, progress=False, report=False)
         tables[tag] = load_results(res)
     table = compare_leaderboards(tables["before"], tables["after"])
-    print(markdown(table))
+    labels = tuple(", ".join(f"{k}={v}" for k, v in options[tag].items()) for tag in ("before", "after"))
+    print(markdown(table, labels=labels))
     for metric in ("mse_mm2", "rmse_mm", "mae_mm"):
         agree = rank_agreement(table, metric=metric)
-        print(f"{metric}: HQ-reference ranking equals truth ranking -- without the loop {agree['before']}, "
-              f"with it {agree['after']}  ({agree['before_order']} -> {agree['after_order']})")
+        print(f"{metric}: HQ-reference ranking equals truth ranking -- {labels[0]}: {agree['before']}, "
+              f"{labels[1]}: {agree['after']}  ({agree['before_order']} -> {agree['after_order']})")
 
 
 if __name__ == "__main__":

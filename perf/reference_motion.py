@@ -88,6 +88,9 @@ def _scores(setup, warper, tr, pairs, rule: EdgeRule) -> dict:
     return out
 
 
+FLOW_OPTIONS: dict = {}  # SceneFlow's keyword options (``--flow-stride``)
+
+
 def _flow_motion(setup, warper, read_depth, read_color=None) -> FlowMotion:
     """:class:`align.motion_flow.FlowMotion` of the session's HQ rig (``read_color`` None: from the session)."""
     sess = setup.session
@@ -97,7 +100,7 @@ def _flow_motion(setup, warper, read_depth, read_color=None) -> FlowMotion:
         return None if c < 0 else sess.read_color(setup.hq, int(setup.f_hq_c[c]))
 
     return FlowMotion(read_depth, read_color or from_session, warper,
-                      SceneFlow(setup.K_hq, setup.K_hq_color, setup.T_hqdepth_hqcolor.inverse()))
+                      SceneFlow(setup.K_hq, setup.K_hq_color, setup.T_hqdepth_hqcolor.inverse(), **FLOW_OPTIONS))
 
 
 def _throughput(setup, warper, frames: int) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -139,7 +142,11 @@ def main() -> None:
     ap.add_argument("--speed-frames", type=int, default=40, help="pairs for the throughput (default: %(default)s)")
     ap.add_argument("--edges", choices=("strict", "midpoint"), default="strict",
                     help="the reference's edge rule, align.reference_edges (default: %(default)s, as align)")
+    ap.add_argument("--flow-stride", type=int, default=None,
+                    help="scene flow found for every N-th HQ sample (align.motion_flow.SceneFlow; default: its own)")
     args = ap.parse_args()
+    if args.flow_stride is not None:
+        FLOW_OPTIONS["stride"] = args.flow_stride
     cv2.setNumThreads(1)
     print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated (edges) MAE / RMSE / >50 mm | masked by "
           "the motion | net reference pixels lost | scene flow MAE / RMSE / >50 mm | net lost (flow) |")

@@ -73,7 +73,8 @@ def run_one(seed: int, effects: dict, args) -> dict:
 
 def _stages(stages) -> list[dict]:
     """Each stage's candidates as ``{name: [z, delta_bic, held-out improvement]}`` (look-alike confusion)."""
-    return [{"accepted": s.accepted, "candidates": {n: [c.z, c.delta_bic, c.improvement] for n, c in s.candidates.items()}}
+    return [{"accepted": s.accepted, "undone": s.undone,
+             "candidates": {n: [c.z, c.delta_bic, c.improvement] for n, c in s.candidates.items()}}
             for s in stages]
 
 

@@ -31,7 +31,7 @@ from align.loop.effects import feature_effects
 from align.loop.effects.depth import DepthData, depth_effects
 from align.loop.features import FeatureData, FeatureModel, interpolate_tracks
 from align.loop.selection import (Comparison, HeldOut, LinearProblem, compare, folds_of, full_fit, null_threshold,
-                                  weights)
+                                  rho, weights)
 from align.loop.stratify import Signature, depth_signatures, feature_signatures
 from capture.camera import Transform
 
@@ -102,6 +102,7 @@ class StageRecord:
     stage: int
     candidates: dict[str, Comparison]
     accepted: str | None
+    undone: str = ""  # why the accepted effect's non-linear refit was undone (:func:`refit_check`)
 
 
 @dataclass
@@ -181,7 +182,8 @@ def _cols(model: FeatureModel, effects: list[str], base: bool = True) -> np.ndar
 
 
 def refit(model: FeatureModel, x: np.ndarray, free: np.ndarray, *, c: float, max_nfev: int = 30) -> np.ndarray:
-    """Robust non-linear least squares of the ``free`` parameters from ``x`` (Cauchy, scale ``c`` px)."""
+    """Robust non-linear least squares of the ``free`` parameters from ``x`` (Cauchy, scale ``c`` px),
+    each effect parameter kept inside its physical range (:meth:`Effect.ranges`)."""
     def f(z):
         xx = x.copy()
         xx[free] = z
@@ -192,10 +194,52 @@ def refit(model: FeatureModel, x: np.ndarray, free: np.ndarray, *, c: float, max
         xx[free] = z
         return model.jacobian(xx, columns=free)
 
-    res = least_squares(f, x[free], jac=jac, loss="cauchy", f_scale=c, x_scale="jac", max_nfev=max_nfev)
+    lo, hi = _ranges(model)
+    lo, hi = lo[free], hi[free]
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    z0 = np.clip(x[free], lo + 1e-6 * span, hi - 1e-6 * span)
+    res = least_squares(f, z0, jac=jac, loss="cauchy", f_scale=c, x_scale="jac", max_nfev=max_nfev, bounds=(lo, hi))
     out = x.copy()
     out[free] = res.x
     return out
+
+
+def _ranges(model: FeatureModel) -> tuple[np.ndarray, np.ndarray]:
+    """``(low, high)`` ``(n_params,)``: each parameter's physical range (pose and shift unbounded)."""
+    lo, hi = np.full(model.n_params, -np.inf), np.full(model.n_params, np.inf)
+    for e in model.effects:
+        sl = model.layout[e.name]
+        lo[sl], hi[sl] = np.array(e.ranges(), float).reshape(-1, 2).T
+    return lo, hi
+
+
+#: An accepted effect's refit is undone when its parameter ends within this share of its range
+#: from an end (the refit ran into the bound: the data want a value no device shows).
+AT_BOUND = 1e-3
+
+
+def refit_check(model: FeatureModel, x_prev: np.ndarray, x_new: np.ndarray, *, new_cols: np.ndarray, c: float,
+                max_lost: float = 0.01) -> str:
+    """Why the non-linear refit ``x_new`` (free columns ``new_cols``) of a just-accepted effect must be
+    undone, or ``""``. The linearised held-out test accepted the effect; the refit must realise its
+    gain: no parameter at an end of its physical range, no more than ``max_lost`` of the feature
+    rows in use at ``x_prev`` leaving their windows (a feature that leaves has no residual, so the
+    robust loss can fall by discarding rows), and a robust loss over those rows below ``x_prev``'s."""
+    lo, hi = _ranges(model)
+    tol = AT_BOUND * np.where(np.isfinite(hi - lo), hi - lo, np.inf)
+    at = (x_new - lo < tol) | (hi - x_new < tol)
+    names = model.names()
+    if np.any(at[new_cols]):
+        return "refit at the end of the physical range: " + ", ".join(
+            f"{names[i]} = {x_new[i]:.4g}" for i in new_cols if at[i])
+    r_a, r_b = model.residuals(x_prev), model.residuals(x_new)
+    keep = r_a != 0
+    lost = float(np.mean(r_b[keep] == 0)) if keep.any() else 0.0
+    loss_a, loss_b = (float(np.sum(rho(r[keep], c))) / max(int(keep.sum()), 1) for r in (r_a, r_b))
+    if lost > max_lost or loss_b >= loss_a:
+        return (f"refit lost the gain: robust loss per row {loss_a:.4g} -> {loss_b:.4g}, "
+                f"{100 * lost:.1f} % of rows left their window")
+    return ""
 
 
 #: The HQ colour image is cut into this many cells a side for the feature phase's second clustering.
@@ -277,6 +321,7 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
             fixed.append(e)
     x = model.x0(T, shift_us, values)
     accepted: list[str] = []
+    undone: list[str] = []
     group = np.repeat(data.probe, 2)
     folds = folds_of(data.n_probes, folds=o.folds, gap=o.gap)
     # base fit; the robust scale from its residuals
@@ -296,7 +341,7 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
         r0, J = model.residuals(x), model.jacobian(x)
         p = LinearProblem(r0, J, group, c, model.names())
         base = _cols(model, accepted)
-        cands = [e for e in lib if e not in fixed and e.name not in accepted
+        cands = [e for e in lib if e not in fixed and e.name not in accepted and e.name not in undone
                  and (e.requires is None or e.requires in accepted)]
         cand_cols = [_cols(model, [e.name], base=False) for e in cands]
         h = HeldOut(p, np.concatenate([base] + cand_cols), folds)
@@ -316,11 +361,17 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
         secs[f"stage{stage}"] = time.perf_counter() - t0
         if best is None:
             break
+        x_new = refit(model, x, _cols(model, accepted + [best]), c=c, max_nfev=o.max_nfev)
+        why = refit_check(model, x, x_new, new_cols=_cols(model, accepted + [best]), c=c)
+        if why:
+            stages[-1].undone, stages[-1].accepted = why, None
+            undone.append(best)
+            continue
+        x = x_new
         accepted.append(best)
         e = next(e for e in lib if e.name == best)
         findings.append(Finding(best, "features", {}, {}, dict(zip(e.params, e.units)), "found", e.what,
                                 e.signature, comps[best], stage, extra={"look_alikes": alike} if alike else {}))
-        x = refit(model, x, _cols(model, accepted), c=c, max_nfev=o.max_nfev)
     t0 = time.perf_counter()
     cov, after_summary, before, after = _finalise(model, lib, fixed, findings, x, x_base, accepted, c=c, folds=folds,
                                                   model_errors=o.model_errors)

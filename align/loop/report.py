@@ -142,8 +142,8 @@ def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptio
     else:
         lines += ["No effect was added: the base model (constant time shift, one rigid transform, pinhole cameras) "
                   "explains the held-out data as well as any effect of the library.", ""]
-    stages = [(s.stage, s.candidates, s.accepted, "features") for s in fl.stages] + \
-             ([(s.stage, s.candidates, s.accepted, "depth") for s in dl.stages] if dl else [])
+    stages = [(s.stage, s.candidates, s.accepted or (f"none ({s.undone})" if s.undone else None), "features")
+              for s in fl.stages] + ([(s.stage, s.candidates, s.accepted, "depth") for s in dl.stages] if dl else [])
     if stages:
         lines += ["| phase | stage | candidate: z / held-out improvement / delta BIC | accepted |", "|---|--:|---|---|"]
         for st, cands, acc, phase in stages:

@@ -74,7 +74,7 @@ class LoopResult:
     def summary_json(self) -> dict:
         fl = self.features
         return {"threshold_z": fl.threshold, "scale_px": fl.scale_px, "bootstrap_replicates": int(fl.null_z.size),
-                "stages": [{"stage": s.stage, "accepted": s.accepted,
+                "stages": [{"stage": s.stage, "accepted": s.accepted, "undone": s.undone,
                             "candidates": {n: c.to_dict() for n, c in s.candidates.items()}} for s in fl.stages],
                 "depth_stages": [] if self.depth is None else [
                     {"stage": s.stage, "accepted": s.accepted,

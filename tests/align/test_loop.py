@@ -281,3 +281,76 @@ def test_stated_drift_deviation_counts_the_stamp_wander_over_the_probes_span():
     assert f.params["b_ppm"] == pytest.approx(g.params["b_ppm"], abs=1e-9)
     assert f.std["b_ppm"] == pytest.approx(np.hypot(g.std["b_ppm"], m), rel=1e-9)
     assert f.extra["model_error"]["b_ppm"] == pytest.approx(m)
+
+
+# ---------------------------------------------------------------- the refit of an accepted effect (issue 12, RS seed 14)
+def _rs_model(seed=0):
+    from align.loop.effects import feature_effects
+    from align.loop.features import FeatureModel
+    from align.loop.loop import _cols, refit
+
+    fd, truth = feature_data(seed=seed, readout_ms=30.0, seconds=4.0, probes=16, n=100)
+    model = FeatureModel(fd, feature_effects())
+    T, a = start(truth)
+    x = refit(model, model.x0(T, a), _cols(model, []), c=1.0)
+    return model, x, _cols(model, ["rolling_shutter_lq"]), model.layout["rolling_shutter_lq"].start
+
+
+def test_refit_stays_in_the_readout_range_and_finds_the_truth_from_a_runaway_start():
+    """On rendered seed 14 (30 ms) the unbounded refit ran to -2458 ms: there nearly every track sample
+    leaves its window, a feature outside has no residual, so the robust loss is lower than at the truth
+    (a trap). Started there, the bounded refit comes back to the truth; the readout stays in range."""
+    from align.loop.effects.rolling_shutter import MAX_READOUT_MS
+    from align.loop.loop import refit
+    from align.loop.selection import rho
+
+    model, x, free, i = _rs_model()
+    far = x.copy()
+    far[i] = -2458.0
+    at_truth = x.copy()
+    at_truth[i] = 30.0
+    r_far, r_true = model.residuals(far), model.residuals(at_truth)
+    assert np.mean(r_far != 0) < 0.1 and np.mean(r_true != 0) == 1.0
+    assert rho(r_far, 1.0).sum() < rho(r_true, 1.0).sum()  # the trap the unbounded refit fell into
+    got = refit(model, far, free, c=1.0)[i]
+    assert -MAX_READOUT_MS <= got <= MAX_READOUT_MS
+    assert got == pytest.approx(30.0, abs=1.0)
+
+
+def test_refit_check_undoes_a_refit_at_its_bound_off_its_gain_or_dropping_rows():
+    from align.loop.loop import _cols, refit, refit_check
+
+    model, x, free, i = _rs_model()
+    good = refit(model, x, free, c=1.0)
+    assert refit_check(model, x, good, new_cols=free, c=1.0) == ""
+    for v, why in ((-2458.0, "physical range"), (59.99, "physical range"), (-30.0, "lost the gain")):
+        bad = good.copy()
+        bad[i] = v
+        assert why in refit_check(model, x, bad, new_cols=free, c=1.0)
+    drift = _cols(model, ["clock_drift"])
+    runaway = x.copy()
+    runaway[model.layout["clock_drift"].start] = 1e5  # 0.4 s over the session: rows leave their windows
+    assert "left their window" in refit_check(model, x, runaway, new_cols=drift, c=1.0)
+
+
+def test_loop_undoes_an_accepted_effect_whose_refit_runs_away(monkeypatch):
+    """The loop's stage refit replaced by one that runs away as seed 14's did: the effect is not in
+    the final model, the stage says why, and the parameters stay at the base fit's."""
+    import align.loop.loop as L
+
+    real = L.refit
+
+    def runaway(model, x, free, **kw):
+        out = real(model, x, free, **kw)
+        i = model.layout["rolling_shutter_lq"].start
+        if i in free:
+            out[i] = -2458.0
+        return out
+
+    monkeypatch.setattr(L, "refit", runaway)
+    fd, truth = feature_data(seed=3, **SMALL, readout_ms=30.0)
+    T, a = start(truth)
+    loop = fit_feature_effects(fd, T=T, shift_us=a, options=OPTS)
+    assert "rolling_shutter_lq" not in [f.name for f in loop.findings]
+    assert any(s.undone and s.accepted is None for s in loop.stages)
+    assert abs(loop.x[loop.model.layout["rolling_shutter_lq"]][0]) < 60.0

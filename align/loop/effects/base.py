@@ -12,7 +12,9 @@ class Effect:
     ``effects`` keys that declare it), ``signature`` (the residual covariate it shows against),
     ``what`` (one line for reports), ``model_error`` (per parameter: the error its estimate shows on
     rendered sessions beyond its fitted deviation, measured against the simulator's truth and added
-    in quadrature to the stated deviation; 0 where none was measured)."""
+    in quadrature to the stated deviation; 0 where none was measured), ``bounds`` (per parameter, the
+    ``(low, high)`` range a real device can show: the non-linear refit stays inside it and an effect
+    whose refitted parameter reaches an end is rejected; empty = unbounded)."""
 
     name: str = ""
     params: tuple[str, ...] = ()
@@ -23,6 +25,7 @@ class Effect:
     signature: str = ""
     what: str = ""
     model_error: tuple[float, ...] = ()
+    bounds: tuple[tuple[float, float], ...] = ()
 
     def time_offset_us(self, data, v: np.ndarray):
         return 0.0
@@ -39,6 +42,10 @@ class Effect:
     def model_errors(self, data) -> tuple[float, ...]:
         """Each parameter's model error for these features (default: the constant ``model_error``)."""
         return tuple(self.model_error) or (0.0,) * len(self.params)
+
+    def ranges(self) -> list[tuple[float, float]]:
+        """Each parameter's ``(low, high)`` physical range (default unbounded)."""
+        return list(self.bounds) or [(-np.inf, np.inf)] * len(self.params)
 
     def declared_values(self, declared: dict) -> np.ndarray | None:
         """The parameter values a session's declared ``effects`` give this effect (None: not declared)."""

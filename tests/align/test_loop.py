@@ -245,11 +245,11 @@ def test_stated_hq_k1_deviation_counts_the_model_error_all_probes_share():
 
 
 def test_stated_depth_scale_deviation_counts_the_geometry_model_error():
-    """The depth scale carries a measured model error (align.loop.effects.depth.DEPTH_SCALE_MODEL_ERROR,
-    the warp geometry's own error) in quadrature; the offset carries none; estimates unchanged."""
+    """The depth scale and offset carry measured model errors (align.loop.effects.depth.DEPTH_SCALE_MODEL_ERROR,
+    DEPTH_OFFSET_MODEL_ERROR: the warp geometry's own error) in quadrature; estimates unchanged."""
     from dataclasses import replace
 
-    from align.loop.effects.depth import DEPTH_SCALE_MODEL_ERROR
+    from align.loop.effects.depth import DEPTH_OFFSET_MODEL_ERROR, DEPTH_SCALE_MODEL_ERROR
 
     d = _depth(scale=1.01, offset_m=0.03)
     on = fit_depth_effects(d, options=OPTS)
@@ -260,7 +260,9 @@ def test_stated_depth_scale_deviation_counts_the_geometry_model_error():
     assert 0 < s_fit < DEPTH_SCALE_MODEL_ERROR
     assert f_on["depth_scale"].std["scale"] == pytest.approx(np.hypot(s_fit, DEPTH_SCALE_MODEL_ERROR), rel=1e-9)
     assert f_on["depth_scale"].extra["std_fit"] == {"scale": s_fit}
-    assert f_on["depth_offset"].std == f_off["depth_offset"].std and "model_error" not in f_on["depth_offset"].extra
+    o_fit = f_off["depth_offset"].std["offset_mm"]
+    assert f_on["depth_offset"].std["offset_mm"] == pytest.approx(np.hypot(o_fit, 1e3 * DEPTH_OFFSET_MODEL_ERROR), rel=1e-9)
+    assert f_on["depth_offset"].extra["model_error"] == {"offset_mm": pytest.approx(1e3 * DEPTH_OFFSET_MODEL_ERROR)}
 
 
 def test_stated_drift_deviation_counts_the_stamp_wander_over_the_probes_span():
@@ -354,3 +356,26 @@ def test_loop_undoes_an_accepted_effect_whose_refit_runs_away(monkeypatch):
     assert "rolling_shutter_lq" not in [f.name for f in loop.findings]
     assert any(s.undone and s.accepted is None for s in loop.stages)
     assert abs(loop.x[loop.model.layout["rolling_shutter_lq"]][0]) < 60.0
+
+
+def test_the_two_cameras_lens_k1_are_look_alikes_over_a_wider_bic_gap():
+    """A small lens on one camera is fitted nearly as well by the other camera's (rendered k1 = 0.02:
+    the wrong camera won by 10-29 BIC): within LENS_CAMERAS_BIC they are named look-alikes and the
+    library order (LQ first) decides; other pairs keep LOOK_ALIKE_BIC."""
+    from align.loop.loop import LENS_CAMERAS_BIC, LOOK_ALIKE_BIC, choose
+    from align.loop.selection import Comparison
+
+    def comps(**bic):
+        return {n: Comparison(z=8.0, improvement=0.05, loss_before=1.0, loss_after=0.95, delta_bic=b)
+                for n, b in bic.items()}
+
+    gap = (LOOK_ALIKE_BIC + LENS_CAMERAS_BIC) / 2
+    order = ["clock_drift", "lens_lq_k1", "lens_hq_k1"]
+    c = comps(lens_lq_k1=-100.0 + gap, lens_hq_k1=-100.0)
+    assert choose(c, order[1:], threshold=3.0, min_improvement=0.0) == ("lens_lq_k1", ["lens_hq_k1"])
+    c = comps(lens_lq_k1=-100.0 + LENS_CAMERAS_BIC + 1, lens_hq_k1=-100.0)
+    assert choose(c, order[1:], threshold=3.0, min_improvement=0.0) == ("lens_hq_k1", [])
+    c = comps(clock_drift=-100.0 + gap, lens_hq_k1=-100.0)
+    assert choose(c, order[::2], threshold=3.0, min_improvement=0.0) == ("lens_hq_k1", [])
+    c = comps(clock_drift=-100.0 + LOOK_ALIKE_BIC / 2, lens_hq_k1=-100.0)
+    assert choose(c, order[::2], threshold=3.0, min_improvement=0.0) == ("clock_drift", ["lens_hq_k1"])

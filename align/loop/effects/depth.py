@@ -13,7 +13,9 @@ Model error of the scale (:data:`DEPTH_SCALE_MODEL_ERROR`): the reference is war
 ``T_lq_hq``, whose own error (about a millimetre) moves the fitted scale by a few 1e-4; the
 cluster-robust deviation over pairs does not count it (on rendered sessions with s = 1.03 it was
 +-0.0001 while the estimate sat 0.0002-0.0003 off). It is added in quadrature, as the HQ lens's
-``k1`` model error is (:mod:`align.loop.effects.lens`).
+``k1`` model error is (:mod:`align.loop.effects.lens`). The offset has one for the same reason
+(:data:`DEPTH_OFFSET_MODEL_ERROR`): an error of ``T_lq_hq`` along the LQ depth camera's axis moves
+every warped depth by the same amount, an offset.
 """
 from __future__ import annotations
 
@@ -63,10 +65,16 @@ class DepthEffect:
 #: -0.0002 against deviations 0.00008-0.00015; notes of issue 12, looplens).
 DEPTH_SCALE_MODEL_ERROR = 0.0003
 
+#: Error of the depth offset estimate from the same geometry (metres), solved from RMS(error /
+#: sqrt(std^2 + m^2)) = 1 on rendered sessions with o = 10 mm, seeds 21-23 (errors -1.30, -0.64,
+#: +0.18 mm against deviations 0.19-0.66 mm: 1 of 3 intervals covered; 0.64 mm, rounded to 0.6; the
+#: 50 mm sessions of seeds 11-12 were covered without it). Held out: notes of issue 12, session 6.
+DEPTH_OFFSET_MODEL_ERROR = 0.0006
+
 DEPTH_SCALE = DepthEffect("depth_scale", "s_minus_1", "1", "LQ depth is scaled against HQ: z_LQ = s z_HQ",
                           "depth_scale", "constant", model_error=DEPTH_SCALE_MODEL_ERROR)
 DEPTH_OFFSET = DepthEffect("depth_offset", "o_m", "m", "LQ depth is offset against HQ: z_LQ = z_HQ + o",
-                           "depth_offset_mm", "depth")
+                           "depth_offset_mm", "depth", model_error=DEPTH_OFFSET_MODEL_ERROR)
 
 
 def depth_effects() -> list[DepthEffect]:

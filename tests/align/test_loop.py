@@ -285,6 +285,21 @@ def test_stated_drift_deviation_counts_the_stamp_wander_over_the_probes_span():
     assert f.extra["model_error"]["b_ppm"] == pytest.approx(m)
 
 
+def test_stated_lq_readout_deviation_counts_its_model_error():
+    """The LQ readout carries align.loop.effects.rolling_shutter.READOUT_MODEL_ERROR_MS in quadrature."""
+    from dataclasses import replace
+
+    from align.loop.effects.rolling_shutter import READOUT_MODEL_ERROR_MS
+
+    fd, truth = feature_data(seed=3, **SMALL, readout_ms=30.0)
+    T, a = start(truth)
+    on = fit_feature_effects(fd, T=T, shift_us=a, options=OPTS)
+    off = fit_feature_effects(fd, T=T, shift_us=a, options=replace(OPTS, model_errors=False))
+    f, g = (next(f for f in loop.findings if f.name == "rolling_shutter_lq") for loop in (on, off))
+    assert f.params == g.params and 0 < g.std["readout_ms"] < READOUT_MODEL_ERROR_MS
+    assert f.std["readout_ms"] == pytest.approx(np.hypot(g.std["readout_ms"], READOUT_MODEL_ERROR_MS), rel=1e-9)
+
+
 # ---------------------------------------------------------------- the refit of an accepted effect (issue 12, RS seed 14)
 def _rs_model(seed=0):
     from align.loop.effects import feature_effects

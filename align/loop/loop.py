@@ -9,9 +9,12 @@ Jacobian column per parameter of the library), and every candidate effect (those
 Among the candidates above the threshold, with a falling BIC and a held-out improvement above
 ``min_improvement``, the one with the lowest BIC is accepted (:func:`choose`; look-alikes within
 :data:`LOOK_ALIKE_BIC` are named with it) and the loop repeats; it stops when none is. The threshold
-comes once, at the first stage, from the parametric bootstrap. An accepted effect is refitted
-non-linearly inside its physical range and taken out again (:func:`refit_check`: the stage records
-why) when the refit ends at a bound, drops feature rows or does not lower the robust loss.
+comes once, at the first stage, from the parametric bootstrap. The look-alikes of an accepted
+effect are not candidates later (fitted together, two effects the data cannot tell apart share
+the signal arbitrarily: LQ and HQ lens k1 = -0.020 and -0.041 for an LQ k1 of 0.02). An accepted
+effect is refitted non-linearly inside its physical range and taken out again (:func:`refit_check`:
+the stage records why) when the refit ends at a bound, drops feature rows or does not lower the
+robust loss.
 
 Depth phase (:func:`fit_depth_effects`): the same on the sampled depth pixels, with scale and
 offset as candidates (linear: no re-linearisation needed).
@@ -337,6 +340,7 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
     x = model.x0(T, shift_us, values)
     accepted: list[str] = []
     undone: list[str] = []
+    alikes: list[str] = []
     group = np.repeat(data.probe, 2)
     folds = folds_of(data.n_probes, folds=o.folds, gap=o.gap)
     # base fit; the robust scale from its residuals
@@ -356,7 +360,7 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
         r0, J = model.residuals(x), model.jacobian(x)
         p = LinearProblem(r0, J, group, c, model.names())
         base = _cols(model, accepted)
-        cands = [e for e in lib if e not in fixed and e.name not in accepted and e.name not in undone
+        cands = [e for e in lib if e not in fixed and e.name not in accepted + undone + alikes
                  and (e.requires is None or e.requires in accepted)]
         cand_cols = [_cols(model, [e.name], base=False) for e in cands]
         h = HeldOut(p, np.concatenate([base] + cand_cols), folds)
@@ -384,6 +388,7 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
             continue
         x = x_new
         accepted.append(best)
+        alikes += alike  # what the data could not tell from an accepted effect is not searched again
         e = next(e for e in lib if e.name == best)
         findings.append(Finding(best, "features", {}, {}, dict(zip(e.params, e.units)), "found", e.what,
                                 e.signature, comps[best], stage, extra={"look_alikes": alike} if alike else {}))

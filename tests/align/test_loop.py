@@ -394,3 +394,24 @@ def test_the_two_cameras_lens_k1_are_look_alikes_over_a_wider_bic_gap():
     assert choose(c, order[::2], threshold=3.0, min_improvement=0.0) == ("lens_hq_k1", [])
     c = comps(clock_drift=-100.0 + LOOK_ALIKE_BIC / 2, lens_hq_k1=-100.0)
     assert choose(c, order[::2], threshold=3.0, min_improvement=0.0) == ("clock_drift", ["lens_hq_k1"])
+
+
+def test_look_alikes_of_an_accepted_effect_are_not_searched_again(monkeypatch):
+    """Two effects the data cannot tell apart, fitted together, share the signal arbitrarily (rendered
+    LQ k1 = 0.02: LQ -0.020 with HQ -0.041): once one is accepted its look-alikes leave the search."""
+    import align.loop.loop as L
+
+    real = L.choose
+
+    def lens_pair(comps, order, **kw):
+        best, alike = real(comps, order, **kw)
+        return (best, ["lens_hq_k1"]) if best == "lens_lq_k1" else (best, alike)
+
+    monkeypatch.setattr(L, "choose", lens_pair)
+    fd, truth = feature_data(seed=3, **SMALL, k1=0.08)
+    T, a = start(truth)
+    loop = fit_feature_effects(fd, T=T, shift_us=a, options=OPTS)
+    assert loop.stages[0].accepted == "lens_lq_k1"
+    assert all("lens_hq_k1" not in s.candidates for s in loop.stages[1:])
+    f = next(f for f in loop.findings if f.name == "lens_lq_k1")
+    assert f.extra["look_alikes"] == ["lens_hq_k1"] and abs(f.params["k1"] - 0.08) < 1.96 * f.std["k1"]

@@ -765,16 +765,6 @@ def _only(sess: Session, role: str) -> str:
     return ids[0]
 
 
-def pose_std_at_1m(fit) -> float:
-    """A fit's pose uncertainty as one number (metres): its translation sd plus its rotation sd (radians)
-    times 1 m. With no board, a multi-view rig fits the pair (reference, second view) both ways; the rig
-    keeps the better-determined one (measured, four-view people seed 2001: the second view's own fit was
-    105 mm / 1.28 deg off the simulator's extrinsics, sd 20 mm / 0.24 deg; the reference's fit of the
-    same pair 10 mm / 0.16 deg off, sd 12 mm / 0.14 deg; DDD trained on that rig moved the people by
-    1-5 mm less, docs/worklog)."""
-    return float(fit.translation_std_m + np.radians(fit.rotation_std_deg))
-
-
 def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOptions, *, force: bool,
                      t0: float) -> AlignmentResult:
     hqs = sess.sensors_with_role("hq")
@@ -787,15 +777,10 @@ def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOpti
             setup = pair_setup(sess, lq=v, hq=src, dejitter=opts.dejitter)
             fits[v] = fit_pair(setup, opts)
         T_ref = {v: fits[v].T_lq_hq.inverse() for v in views if v != reference}
-        loop = None
+        rig = compose_rig(reference, T_ref)
         if reference in fits:  # reference view fitted against another view: a loop check
             other = views[1]
-            loop = (reference, other, *fits[reference].T_lq_hq.error_to(T_ref[other]))
-            if pose_std_at_1m(fits[reference].fit) < pose_std_at_1m(fits[other].fit):
-                T_ref[other] = fits[reference].T_lq_hq   # that pair fitted both ways: the better-determined way
-        rig = compose_rig(reference, T_ref)
-        if loop:
-            rig.loop_errors.append(loop)
+            rig.loop_errors.append((reference, other, *fits[reference].T_lq_hq.error_to(rig.T_dst_src(reference, other))))
         atomic_write_json(stage / "rig.json", {"format": "depthbench.rig", "session": sess.name, **rig.to_dict(),
                                               "time_shift_us": {v: int(round(f.shift.time_shift_us)) for v, f in fits.items()},
                                               "time_source": {v: f.setup.hq for v, f in fits.items()}})

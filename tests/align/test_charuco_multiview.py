@@ -212,18 +212,3 @@ def test_charuco_path_through_align_session(tmp_path):
     assert dt < 0.003 and dr < 0.15, (dt, dr)
     meta = json.loads((tmp_path / "aligned" / "aligned.json").read_text())
     assert meta["T_lq_hq_source"] == "charuco" and meta["charuco"]["views"] >= 6
-
-
-def test_a_pair_fitted_both_ways_keeps_the_better_determined_fit():
-    """pose_std_at_1m: translation sd + rotation sd (rad) x 1 m; the rig keeps the smaller (align/pipeline.py)."""
-    from types import SimpleNamespace
-
-    from align.pipeline import pose_std_at_1m
-
-    a = SimpleNamespace(translation_std_m=0.020, rotation_std_deg=0.24)
-    b = SimpleNamespace(translation_std_m=0.012, rotation_std_deg=0.14)
-    assert pose_std_at_1m(a) == pytest.approx(0.020 + np.radians(0.24))
-    assert pose_std_at_1m(b) < pose_std_at_1m(a)
-    # rotation counts: 0.5 deg is 8.7 mm at 1 m, more than 5 mm of translation
-    assert pose_std_at_1m(SimpleNamespace(translation_std_m=0.001, rotation_std_deg=0.5)) > \
-        pose_std_at_1m(SimpleNamespace(translation_std_m=0.006, rotation_std_deg=0.0))

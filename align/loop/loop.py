@@ -161,9 +161,10 @@ LOOK_ALIKE_BIC = 10.0
 
 #: The same for the LQ and the HQ colour lens's ``k1``: a small lens on one camera is fitted nearly as
 #: well by the opposite-sign lens on the other (the two cameras see the scene from nearly the same
-#: place). On rendered sessions (notes of issue 12, session 5: seeds 21-23, 4 s) the wrong camera won
-#: 6 of 6 at k1 = 0.02 by 10-29 BIC, the right one 8 of 8 at k1 = 0.1 by 55-115; this gap, between
-#: the two, names the pair as look-alikes where the data cannot choose.
+#: place). On rendered sessions (notes of issue 12, sessions 5-6: seeds 21-23, 4 s) the wrong camera
+#: won 6 of 6 at k1 = 0.02 by 1-29 BIC, the right one 6 of 6 at k1 = 0.1 by 55-115; this gap, between
+#: the two, names the pair as look-alikes where the data cannot choose (held out, seeds 24-26: 5 of 5
+#: small lenses within it, by 1-23).
 LENS_CAMERAS_BIC = 40.0
 _ALIKE_GAP = {frozenset({"lens_lq_k1", "lens_hq_k1"}): LENS_CAMERAS_BIC}
 

@@ -11,10 +11,11 @@ Among the candidates above the threshold, with a falling BIC and a held-out impr
 :data:`LOOK_ALIKE_BIC` are named with it) and the loop repeats; it stops when none is. The threshold
 comes once, at the first stage, from the parametric bootstrap. The look-alikes of an accepted
 effect are not candidates later (fitted together, two effects the data cannot tell apart share
-the signal arbitrarily: LQ and HQ lens k1 = -0.020 and -0.041 for an LQ k1 of 0.02). An accepted
-effect is refitted non-linearly inside its physical range and taken out again (:func:`refit_check`:
-the stage records why) when the refit ends at a bound, drops feature rows or does not lower the
-robust loss.
+the signal arbitrarily: LQ and HQ lens k1 = -0.020 and -0.041 for an LQ k1 of 0.02), and an effect
+accepted with look-alikes is not refined further (no LQ k2 after an LQ k1 that may be the HQ
+lens's: small HQ lenses drew a spurious LQ k2 that way). An accepted effect is refitted
+non-linearly inside its physical range and taken out again (:func:`refit_check`: the stage records
+why) when the refit ends at a bound, drops feature rows or does not lower the robust loss.
 
 Depth phase (:func:`fit_depth_effects`): the same on the sampled depth pixels, with scale and
 offset as candidates (linear: no re-linearisation needed).
@@ -189,6 +190,15 @@ def choose(comps: dict[str, Comparison], order: list[str], *, threshold: float, 
     return best, [n for n in alike if n != best]
 
 
+def _candidates(lib, *, fixed, accepted: list[str], dropped: list[str], ambiguous: list[str]) -> list:
+    """The effects a stage compares: neither fixed (declared), accepted nor dropped (undone after its
+    refit, or a look-alike of an accepted effect: the data could not tell them apart), and whose
+    ``requires`` is accepted without look-alikes (an LQ k1 that may be the HQ lens's is not refined
+    by an LQ k2)."""
+    return [e for e in lib if e not in fixed and e.name not in accepted + dropped
+            and (e.requires is None or (e.requires in accepted and e.requires not in ambiguous))]
+
+
 def _cols(model: FeatureModel, effects: list[str], base: bool = True) -> np.ndarray:
     idx = list(range(7)) if base else []
     for name in effects:
@@ -340,8 +350,8 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
             fixed.append(e)
     x = model.x0(T, shift_us, values)
     accepted: list[str] = []
-    undone: list[str] = []
-    alikes: list[str] = []
+    dropped: list[str] = []  # undone after their refit, or look-alikes of an accepted effect
+    ambiguous: list[str] = []  # accepted with look-alikes
     group = np.repeat(data.probe, 2)
     folds = folds_of(data.n_probes, folds=o.folds, gap=o.gap)
     # base fit; the robust scale from its residuals
@@ -361,8 +371,7 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
         r0, J = model.residuals(x), model.jacobian(x)
         p = LinearProblem(r0, J, group, c, model.names())
         base = _cols(model, accepted)
-        cands = [e for e in lib if e not in fixed and e.name not in accepted + undone + alikes
-                 and (e.requires is None or e.requires in accepted)]
+        cands = _candidates(lib, fixed=fixed, accepted=accepted, dropped=dropped, ambiguous=ambiguous)
         cand_cols = [_cols(model, [e.name], base=False) for e in cands]
         h = HeldOut(p, np.concatenate([base] + cand_cols), folds)
         if before_summary is None:
@@ -385,11 +394,12 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
         why = refit_check(model, x, x_new, new_cols=_cols(model, accepted + [best]), c=c)
         if why:
             stages[-1].undone, stages[-1].accepted = why, None
-            undone.append(best)
+            dropped.append(best)
             continue
         x = x_new
         accepted.append(best)
-        alikes += alike  # what the data could not tell from an accepted effect is not searched again
+        dropped += alike
+        ambiguous += [best] if alike else []
         e = next(e for e in lib if e.name == best)
         findings.append(Finding(best, "features", {}, {}, dict(zip(e.params, e.units)), "found", e.what,
                                 e.signature, comps[best], stage, extra={"look_alikes": alike} if alike else {}))

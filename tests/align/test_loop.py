@@ -398,7 +398,8 @@ def test_the_two_cameras_lens_k1_are_look_alikes_over_a_wider_bic_gap():
 
 def test_look_alikes_of_an_accepted_effect_are_not_searched_again(monkeypatch):
     """Two effects the data cannot tell apart, fitted together, share the signal arbitrarily (rendered
-    LQ k1 = 0.02: LQ -0.020 with HQ -0.041): once one is accepted its look-alikes leave the search."""
+    LQ k1 = 0.02: LQ -0.020 with HQ -0.041): once one is accepted its look-alikes leave the search, and
+    it is not refined (no LQ k2 after an LQ k1 that may be the HQ lens's)."""
     import align.loop.loop as L
 
     real = L.choose
@@ -412,6 +413,6 @@ def test_look_alikes_of_an_accepted_effect_are_not_searched_again(monkeypatch):
     T, a = start(truth)
     loop = fit_feature_effects(fd, T=T, shift_us=a, options=OPTS)
     assert loop.stages[0].accepted == "lens_lq_k1"
-    assert all("lens_hq_k1" not in s.candidates for s in loop.stages[1:])
+    assert all("lens_hq_k1" not in s.candidates and "lens_lq_k2" not in s.candidates for s in loop.stages[1:])
     f = next(f for f in loop.findings if f.name == "lens_lq_k1")
     assert f.extra["look_alikes"] == ["lens_hq_k1"] and abs(f.params["k1"] - 0.08) < 1.96 * f.std["k1"]

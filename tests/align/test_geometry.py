@@ -6,7 +6,7 @@ from align.errors import FeatureError
 from align.extrinsics import fit_extrinsics, reprojection_errors
 from align.features import detect, lift, match, sample_depth
 from align.residuals import outliers, robust_summary
-from align.roi import background_depth, foreground_mask
+from align.roi import background_depth, foreground_mask, nan_percentile_axis0
 from capture.camera import Intrinsics, Transform
 from tests.align.scene import Plane, Rect, cast, look_at, room, texture
 
@@ -85,6 +85,24 @@ def test_roi_marks_what_stands_in_front_of_the_background():
     for d, person in frames:
         m = foreground_mask(d, model, min_area_px=20)
         assert (m == person).mean() > 0.995
+
+
+@pytest.mark.parametrize("percentile", [0.0, 12.5, 50.0, 90.0, 100.0])
+def test_nan_percentile_equals_numpys_per_pixel(percentile):
+    rng = np.random.default_rng(int(percentile))
+    stack = rng.uniform(0.5, 5.0, (17, 12, 9)).astype(np.float32)
+    stack[rng.random(stack.shape) < 0.6] = np.nan
+    stack[:, 0, 0] = np.nan                     # a pixel never measured
+    stack[1:, 0, 1] = np.nan                    # a pixel measured once
+    got, count = nan_percentile_axis0(stack, percentile)
+    for i, j in np.ndindex(stack.shape[1:]):
+        column = stack[:, i, j]
+        valid = column[np.isfinite(column)]
+        assert count[i, j] == valid.size
+        if valid.size == 0:
+            assert np.isnan(got[i, j])
+        else:
+            assert got[i, j] == pytest.approx(np.percentile(valid.astype(np.float64), percentile), rel=1e-6)
 
 
 def test_residual_helpers():

@@ -49,7 +49,8 @@ class LoopOptions:
     draws. min_improvement: smallest relative held-out loss drop accepted (a practical floor: on clean
     simulated sessions a lens k1 of -0.003 once passed z and BIC with a 0.12 % drop, absorbing
     structure at the HQ image border that no effect models; real effects of the issue's sizes
-    drop it by 0.3 % (drift 1000 ppm over 4 s) to 30 % (lens k1 0.1)). depth_min_improvement: the same
+    drop it by 2-4 % (drift 1000 ppm over 8 s) to 30 % (lens k1 0.1); 1000 ppm over 4 s by 0.2 % or
+    less, at the detection limit: :mod:`align.loop.effects.drift`). depth_min_improvement: the same
     for the depth phase (a 2 s session with LQ k1 0.1 gave a spurious 5 mm offset at 0.39 %, absorbing
     the depth error of moving edges between unsynchronised frames; a real 0.3 % scale drops it by 1.9 %,
     a 10 mm offset by 1.8 %). scale_px, depth_scale_rel:

@@ -78,6 +78,14 @@ class DemoConfig:
     corpus_sequences: int = 5      # training corpus: sequences (the last one validation), scenes alternating
     corpus_seconds: float = 1.2    # scene time per training sequence
     multiview_seconds: float = 1.0  # scene time of DDD's four-view session (30 simultaneous samples at 30 fps)
+    plane_fit_radius_mm: float | None = None  # None: DDD's 5 mm at 640x480 scaled to the image (5 / scale)
+
+    @property
+    def radius_mm(self) -> float:
+        """The plane fit's radius: DDD's 5 mm ball holds a pixel neighbourhood at 640x480; at ``scale``
+        a pixel spans ``1 / scale`` times as much, so the same neighbourhood needs ``5 / scale`` mm (at
+        5 mm and scale 0.5 the plane is undefined beyond ~1.4 m, nearly every frame of the demo)."""
+        return self.plane_fit_radius_mm if self.plane_fit_radius_mm is not None else 5.0 / self.scale
 
     @property
     def workers(self) -> int:
@@ -143,27 +151,30 @@ def _bench_steps(aligned: Path, results: Path, config: DemoConfig, trained: dict
         groups = [("the filters", filters, {}, "align HQ onto LQ")]
         groups += [(", ".join(ps), ",".join(ps), ps, step) for step, ps in list(trained.items())[:-1]]
         for label, names, ps, after in groups:
-            steps.append(_bench_step(f"benchmark {label}", aligned, results, names, ps,
+            steps.append(_bench_step(f"benchmark {label}", aligned, results, names, ps, radius_mm=config.radius_mm,
                                      needs=(after,) + tuple(s.name for s in steps[-1:]), force=force and not steps))
     needs = ("align HQ onto LQ",) + tuple(trained) + tuple(s.name for s in steps[-1:])
     steps.append(_bench_step("benchmark every method", aligned, results, config.methods, params, needs=needs,
+                             radius_mm=config.radius_mm,
                              force=force and not steps, jobs=config.jobs, report=config.reports,
                              progress=None if config.progress else False))
     return steps
 
 
 def _bench_step(name: str, aligned: Path, results: Path, methods: str, params: dict, *, needs: tuple, force: bool,
-                jobs: int | None = 1, report: bool = False, progress: bool | None = False) -> DemoStep:
+                radius_mm: float, jobs: int | None = 1, report: bool = False,
+                progress: bool | None = False) -> DemoStep:
     """One ``bench run`` of ``methods`` into ``results``, as a step and as the command it stands for."""
+    from bench.metrics import MetricConfig
     from bench.runner import run_benchmark
 
     return DemoStep(
         name=name, output=results, needs=needs,
         command=_command("bench run --data", aligned, "--methods", methods, _weights_args(params), "--out", results,
-                         "" if jobs is None else f"--jobs {jobs}", "" if report else "--no-report",
-                         "--force" if force else ""),
-        call=partial(run_benchmark, [aligned], methods, results, force=force, jobs=jobs, progress=progress,
-                     report=report, params=params))
+                         f"--radius-mm {radius_mm:g}", "" if jobs is None else f"--jobs {jobs}",
+                         "" if report else "--no-report", "--force" if force else ""),
+        call=partial(run_benchmark, [aligned], methods, results, config=MetricConfig(radius_m=radius_mm / 1000.0),
+                     force=force, jobs=jobs, progress=progress, report=report, params=params))
 
 
 def _learned_steps(out: Path, config: DemoConfig, *, force: bool,

@@ -30,11 +30,16 @@ def test_demo_runs_every_stage_into_its_folder(demo):
 
 
 def test_demo_results_equal_the_benchmark_library_on_its_aligned_data(demo, tmp_path):
-    """The demo's bench step is run_benchmark with the command line's defaults: the same table."""
+    """The demo's bench step is run_benchmark with the command it prints (the plane fit's radius
+    scaled to the image: 5 mm / 0.5): the same table."""
+    from bench.metrics import MetricConfig
     from bench.runner import run_benchmark
 
-    again = run_benchmark([demo.out / "aligned"], "raw,gaussian", tmp_path / "r", jobs=1, report=False)
+    assert "--radius-mm 10 " in demo.steps[-1].command
+    again = run_benchmark([demo.out / "aligned"], "raw,gaussian", tmp_path / "r", jobs=1, report=False,
+                          config=MetricConfig(radius_m=0.010))
     pd.testing.assert_frame_equal(R.load_results(demo.out / "results"), again.table, check_exact=True)
+    assert (R.load_results(tmp_path / "r")["metric"] == "plane_fit_rmse_mm").any()
 
 
 def test_demo_refuses_an_existing_folder_and_bad_seconds(tmp_path, capsys):

@@ -151,6 +151,8 @@ def _add_corpus(sub) -> None:
                    help="HQ frames each alignment fits (default: align's; the demo's one-second views: 8)")
     p.add_argument("--rig", default="lq-hq", help="simulated rig (default lq-hq; multiview4 or multiview4-hq: "
                    "DDD's four-view corpus, one manifest entry per view)")
+    p.add_argument("--no-report", dest="reports", action="store_false",
+                   help="skip each sequence's alignment report (Markdown and figures)")
     ex = p.add_mutually_exclusive_group()
     ex.add_argument("--jobs", type=_positive_int, metavar="N", help="local processes (default 1)")
     ex.add_argument("--workers", type=_positive_int, metavar="N", help="a local Dask cluster with N workers")
@@ -171,7 +173,7 @@ def _corpus(args) -> int:
         raise BenchError(f"--time-shifts-ms {args.time_shifts_ms!r}: expected numbers like -20,35") from None
     spec = CorpusSpec(seeds=args.seeds, scenes=tuple(s.strip() for s in args.scenes.split(",") if s.strip()),
                       seconds=args.seconds, scale=args.scale, time_shifts_ms=shifts, validation=args.validation,
-                      test=args.test, name=args.name, rig=args.rig, probes=args.probes)
+                      test=args.test, name=args.name, rig=args.rig, probes=args.probes, reports=args.reports)
     ex = ExecutorSpec(jobs=args.jobs or (None if (args.workers or args.scheduler) else 1), workers=args.workers,
                       scheduler=args.scheduler)
     res = make_corpus(args.out, spec, executor=ex, force=args.force, progress=args.progress)

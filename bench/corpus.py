@@ -43,7 +43,8 @@ class CorpusSpec:
 
     ``time_shifts_ms``: empty = drawn by the simulator within +-60 ms from each seed. ``scale``:
     image size factor (0.5: 320x240 LQ). ``validation`` / ``test``: sequences in those splits.
-    ``probes``: HQ frames the alignment fits (None: its default).
+    ``probes``: HQ frames the alignment fits (None: its default). ``reports``: each sequence's
+    alignment report (Markdown and figures, a few CPU-seconds per sequence).
     """
 
     seeds: tuple[int, ...] = (101, 102, 103, 104, 105)
@@ -56,6 +57,7 @@ class CorpusSpec:
     probes: int | None = None
     name: str = "sim-corpus"
     rig: str = "lq-hq"
+    reports: bool = True
 
     def check(self) -> "CorpusSpec":
         from capture.sim import RIGS, SCENES
@@ -93,6 +95,7 @@ class SequenceTask:
     aligned: str
     probes: int | None = None
     rig: str = "lq-hq"
+    report: bool = True
 
 
 def build_sequence(task: SequenceTask) -> dict:
@@ -102,7 +105,8 @@ def build_sequence(task: SequenceTask) -> dict:
 
     sim = simulate(task.session, rig=task.rig, scene=task.scene, seconds=task.seconds, seed=task.seed,
                    time_shift_us=task.time_shift_us, scale=task.scale, progress=False, workers=1)
-    opts = {"progress": False, "workers": 1, **({} if task.rig == "lq-hq" else {"on_unobservable": "flag"})}
+    opts = {"progress": False, "workers": 1, "report": task.report,
+            **({} if task.rig == "lq-hq" else {"on_unobservable": "flag"})}
     if task.probes is not None:
         opts["probes"] = task.probes
     align_session(task.session, task.aligned, **opts)
@@ -116,7 +120,7 @@ def _tasks(spec: CorpusSpec, work: Path) -> list[SequenceTask]:
         shift = round(spec.time_shifts_ms[i % len(spec.time_shifts_ms)] * 1000) if spec.time_shifts_ms else None
         name = f"{scene}-seed{seed}"
         out.append(SequenceTask(seed, scene, spec.seconds, spec.scale, shift, str(work / "sessions" / name),
-                                str(work / "aligned" / name), spec.probes, spec.rig))
+                                str(work / "aligned" / name), spec.probes, spec.rig, spec.reports))
     return out
 
 

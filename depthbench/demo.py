@@ -188,7 +188,7 @@ def _learned_steps(out: Path, config: DemoConfig, *, force: bool,
     corpus, multiview = out / "corpus", out / "corpus_multiview"
     seeds = tuple(1000 + 10 * config.seed + k for k in range(1, config.corpus_sequences + 1))
     mv_seed = 2000 + 10 * config.seed + 1
-    common = dict(scale=config.scale, probes=config.probes)
+    common = dict(scale=config.scale, probes=config.probes, reports=False)   # the session's report is the demo's
     spec = CorpusSpec(seeds=seeds, seconds=config.corpus_seconds, validation=1, test=0,
                       name=f"demo-corpus-seed{config.seed}", **common)
     mv_spec = CorpusSpec(seeds=(mv_seed,), scenes=("people",), seconds=config.multiview_seconds, validation=0,
@@ -198,7 +198,7 @@ def _learned_steps(out: Path, config: DemoConfig, *, force: bool,
     ex = ExecutorSpec(jobs=1 if config.workers > 1 else (config.jobs or 2))
     f = "--force" if force else ""
     probes = "" if config.probes is None else f"--probes {config.probes}"
-    corpus_cmd = partial(_command, "bench corpus --scale", f"{config.scale:g}", f"--jobs {ex.jobs}")
+    corpus_cmd = partial(_command, "bench corpus --scale", f"{config.scale:g}", f"--jobs {ex.jobs} --no-report")
     corpora = [
         DemoStep(name="simulate + align a training corpus", output=corpus,
                  command=corpus_cmd("--out", corpus, "--seeds", ",".join(map(str, seeds)), "--seconds",

@@ -11,7 +11,7 @@ from methods.nn.manifest import read_manifest
 
 def test_corpus_of_two_sequences_on_two_processes(tmp_path):
     spec = CorpusSpec(seeds=(401, 402), scenes=("people", "balloons"), seconds=0.8, scale=0.5,
-                      time_shifts_ms=(-20.0, 35.0), validation=1, probes=6, name="t")
+                      time_shifts_ms=(-20.0, 35.0), validation=1, probes=6, name="t", reports=False)
     res = make_corpus(tmp_path / "c", spec, executor=ExecutorSpec(jobs=2), progress=False)
     m = read_manifest(res.manifest)                      # every dataset present, checksums equal
     assert [e.split for e in m.entries] == ["train", "validation"]
@@ -23,6 +23,7 @@ def test_corpus_of_two_sequences_on_two_processes(tmp_path):
         assert truth["seed"] == e.info["seed"] and e.dataset.simulated
         # aligned by the alignment pipeline (its fit and report fields), not copied from the truth
         assert e.dataset.meta["alignment"]["program"] == "depthbench align" and len(e.dataset) > 10
+        assert not (e.dataset.root / "report.md").exists()      # reports=False reaches the alignment
     assert not any(p.name.endswith(".partial") for p in tmp_path.iterdir())
 
 

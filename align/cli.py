@@ -67,6 +67,11 @@ def register(subparsers) -> None:
                    help="how the reference is carried: edges (crossing times of depth edges, align/motion.py) or flow "
                         "(the HQ frame's points moved along the HQ colour images' optical flow, align/motion_flow.py: "
                         "closer to the truth, about 2x the time) (default: %(default)s)")
+    g = p.add_argument_group("multi-view rigs")
+    g.add_argument("--rig-refine", choices=("views", "always", "never"), default="views",
+                   help="refine the pairwise feature fits of a multi-view rig jointly from every sensor's static depth "
+                        "(align/rig_refine.py): where the reference is a view (no HQ sensor), always, or never "
+                        "(default: %(default)s)")
     g = p.add_argument_group("output")
     g.add_argument("--no-truth", action="store_true", help="do not attach the simulator's truth depth (simulated sessions)")
     g.add_argument("--no-report", action="store_true", help="skip report.md and the figures")
@@ -95,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
             on_unobservable="flag" if args.allow_unobservable else "error", attach_truth=not args.no_truth,
             report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
             loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth, reference_edges=args.reference_edges,
-            motion=not args.no_motion, motion_min_dt_ms=args.motion_min_dt_ms, motion_model=args.motion_model)
+            motion=not args.no_motion, motion_min_dt_ms=args.motion_min_dt_ms, motion_model=args.motion_model,
+            rig_refine=args.rig_refine)
     except AlignError as exc:
         raise _with_flag(exc)
     sh = r.shift
@@ -105,7 +111,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"  T_lq_hq: rotation {r.T_lq_hq.rotation_angle_deg():.3f} deg, translation "
           f"{1000 * float((r.T_lq_hq.t ** 2).sum() ** 0.5):.1f} mm; feature RMS {r.fit.rms_px:.2f} px")
     if r.rig is not None:
-        print(f"  rig: {len(r.views)} views in the frame of {r.rig.reference} (rig.json)")
+        refined = " refined from static depth" if r.rig.refinement else ""
+        print(f"  rig: {len(r.views)} views in the frame of {r.rig.reference}{refined} (rig.json)")
+        for w in r.rig.warnings:
+            print(f"  WARNING (rig): {w}")
+        off = (r.rig.refinement or {}).get("feature_fit_sd_off", {})
+        if off:
+            print(f"  feature fits off the refined rig: up to {max(off.values()):.1f} sd (4.7 = p 0.001; see the report)")
     loop = getattr(r.views.get(next(iter(r.views), None)), "loop", None) if r.views else None
     if loop is not None:
         found = [f"{f.name} ({', '.join(f'{k} {v:.4g}' for k, v in f.params.items())})" for f in loop.findings]

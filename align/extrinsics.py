@@ -191,12 +191,22 @@ class RigCalibration:
 
     ``T_rig_sensor[s]`` maps points of sensor ``s``'s depth camera into the rig frame;
     ``loop_errors`` lists redundant pairs ``(a, b, translation m, rotation deg)`` comparing a
-    direct fit of ``T_a_b`` with the composition through the rig frame.
+    direct fit of ``T_a_b`` with the composition through the rig frame. After the joint
+    refinement (:mod:`align.rig_refine`): ``std[s]`` = (translation m, rotation deg) sds of
+    ``T_rig_sensor[s]``, ``refinement`` its summary (pairs, loop check, feature fits' offsets,
+    warnings) and ``T_rig_sensor_features`` the feature rig it started from.
     """
 
     reference: str
     T_rig_sensor: dict[str, Transform]
     loop_errors: list[tuple[str, str, float, float]] = field(default_factory=list)
+    std: dict[str, tuple[float, float]] = field(default_factory=dict)
+    refinement: dict | None = None
+    T_rig_sensor_features: dict[str, Transform] | None = None
+
+    @property
+    def warnings(self) -> list[str]:
+        return list((self.refinement or {}).get("warnings", []))
 
     def T_dst_src(self, dst: str, src: str) -> Transform:
         return self.T_rig_sensor[dst].inverse() @ self.T_rig_sensor[src]
@@ -205,7 +215,12 @@ class RigCalibration:
         return {"reference": self.reference,
                 "T_rig_sensor": {s: T.to_list() for s, T in self.T_rig_sensor.items()},
                 "loop_errors": [{"a": a, "b": b, "translation_mm": 1e3 * t, "rotation_deg": r}
-                                for a, b, t, r in self.loop_errors]}
+                                for a, b, t, r in self.loop_errors],
+                **({"T_rig_sensor_std": {s: {"translation_mm": 1e3 * t, "rotation_deg": r} for s, (t, r) in self.std.items()}}
+                   if self.std else {}),
+                **({"T_rig_sensor_features": {s: T.to_list() for s, T in self.T_rig_sensor_features.items()}}
+                   if self.T_rig_sensor_features else {}),
+                **({"refinement": self.refinement} if self.refinement is not None else {})}
 
 
 def compose_rig(reference: str, T_ref_sensor: dict[str, Transform],

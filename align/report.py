@@ -241,22 +241,42 @@ def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=
 
 
 def write_rig_report(root: Path, session, rig, fits: dict, outputs: dict) -> Path:
-    """``report.md``/``report.html`` of a multi-view rig: the rig, then one line and a link per view."""
+    """``report.md``/``report.html`` of a multi-view rig: the rig (with the refinement's sds, pairs and
+    warnings when it ran), then one line and a link per view."""
     root = Path(root)
-    lines = [f"# Rig calibration: {session.name}", "", f"Rig frame: the depth camera of `{rig.reference}`.", "",
-             "| sensor | Delta vs source (ms) | +- (ms) | rotation (deg) | translation (mm) | feature RMS (px) | pairs kept | report |",
-             "|---|--:|--:|--:|--:|--:|--:|---|"]
+    ref = rig.refinement or {}
+    lines = [f"# Rig calibration: {session.name}", "", f"Rig frame: the depth camera of `{rig.reference}`.", ""]
+    if rig.warnings:
+        lines += ["> **WARNING: the refined rig is not consistent.**", ">"] + [f"> - {w}" for w in rig.warnings] + [""]
+    lines += ["| sensor | Delta vs source (ms) | +- (ms) | rotation (deg) | translation (mm) | sd (deg / mm) | "
+              "feature RMS (px) | feature fit off the rig (sd) | pairs kept | report |",
+              "|---|--:|--:|--:|--:|--:|--:|--:|--:|---|"]
+    off = ref.get("feature_fit_sd_off", {})
     for v, pf in fits.items():
         T = rig.T_rig_sensor.get(v)
         rot = T.rotation_angle_deg() if T is not None else float("nan")
         tr = 1000 * np.linalg.norm(T.t) if T is not None else float("nan")
+        sd = rig.std.get(v)
+        sd_txt = f"{sd[1]:.3f} / {1000 * sd[0]:.1f}" if sd is not None and v != rig.reference else "-"
         lines.append(f"| {v} (from {pf.setup.hq}) | {pf.shift.time_shift_us / 1000:.3f} | {pf.shift.std_us / 1000:.3f} | "
-                     f"{rot:.3f} | {tr:.1f} | {pf.fit.rms_px:.3f} | {outputs[v].kept} | [{v}/report.md]({v}/report.md) |")
+                     f"{rot:.3f} | {tr:.1f} | {sd_txt} | {pf.fit.rms_px:.3f} | {off.get(v, float('nan')):.1f} | "
+                     f"{outputs[v].kept} | [{v}/report.md]({v}/report.md) |")
+    if ref:
+        lines += ["", f"Refinement: {ref['method']}; loop check chi2 {ref['chi2']:.1f} on {ref['dof']} degrees of "
+                  f"freedom, covariances scaled by {ref['variance_factor']:.2f}. A feature fit more than 4.7 sd off the "
+                  "refined rig (p = 0.001) is flagged: its reported covariance does not hold.", "",
+                  "| pair | correspondences | fitness | RMS (mm) | used | loop residual (sd) |", "|---|--:|--:|--:|---|--:|"]
+        for p in ref["pairs"]:
+            loop = "-" if p["loop_sd"] is None else f"{p['loop_sd']:.2f}"
+            lines.append(f"| {p['a']} - {p['b']} | {p['correspondences']} | {p['fitness']:.2f} | {p['rmse_mm']:.1f} | "
+                         f"{'yes' if p['used'] else 'no'} | {loop} |")
+        if ref.get("notes"):
+            lines += ["", "Feature fits flagged (the refined rig replaces them):", ""] + [f"- {n}" for n in ref["notes"]]
     if rig.loop_errors:
         lines += ["", "Loop closure (a direct fit against the composition through the rig frame):", ""]
         for a, b, dt, dr in rig.loop_errors:
             lines.append(f"- {a} <- {b}: {1000 * dt:.2f} mm, {dr:.4f} deg")
-    lines += ["", "Transforms `T_rig_sensor` are in `rig.json`."]
+    lines += ["", "Transforms `T_rig_sensor` (and their sds, the feature rig) are in `rig.json`."]
     md = "\n".join(lines) + "\n"
     path = root / "report.md"
     path.write_text(md)

@@ -148,6 +148,30 @@ def test_multiview_rig_in_one_frame(multiview):
     for v in ("view0", "view1", "view2", "view3"):
         assert (out / v / "aligned.json").is_file() and (out / v / "report.md").is_file()
     assert (out / "report.md").is_file()
+    assert "refinement" not in rig  # an HQ reference keeps its feature fits (AlignOptions.rig_refine = "views")
+
+
+def test_multiview_rig_refined_from_static_depth_within_its_sd(multiview):
+    """align.rig_refine on the simulator's five-sensor rig (the fits of the fixture): every sensor
+    within its stated sd of the simulator's extrinsics, the sds not vacuous, the checks reported."""
+    from align.pipeline import refine_multiview_rig
+    from capture.session import open_session
+
+    root, out, res = multiview
+    truth = json.loads((root / "truth" / "truth.json").read_text())
+    rig = refine_multiview_rig(open_session(root), res.views, res.rig, progress=False)
+    for v, p in truth["pairs"].items():
+        if v == truth["reference_sensor"]:
+            continue
+        dt, dr = rig.T_rig_sensor[v].inverse().error_to(Transform.from_list(p["T_sensor_reference"]))
+        sd_t, sd_r = rig.std[v]
+        # 3-D norm against sqrt(trace): chi with 3 dof, 99.9 % below 2.2x
+        assert dt < 2.2 * sd_t and dr < 2.2 * sd_r, (v, dt, dr, rig.std[v])
+        assert dt < 0.012 and dr < 0.15 and sd_t < 0.012 and sd_r < 0.15, (v, dt, dr, rig.std[v])
+    ref = rig.refinement
+    assert len(ref["pairs"]) == 10 and ref["dof"] >= 24 and ref["consistent"], ref["warnings"]
+    assert set(ref["feature_fit_sd_off"]) == {"view0", "view1", "view2", "view3"}
+    assert all(T.is_close(res.rig.T_rig_sensor[s]) for s, T in rig.T_rig_sensor_features.items())
 
 
 def _board_session(root, spec, T_lq_hq, T_hqd_hqc):

@@ -131,10 +131,10 @@ def test_refine_rig_recovers_the_rig_within_its_sd_and_flags_a_wrong_feature_fit
         # and not vacuous: the sds are small next to the 80 mm / 1 deg it started from
         assert r.translation_std_m(v) < 0.015 and r.rotation_std_deg(v) < 0.3
     assert r.feature_sigmas["view1"] > 4.7 and r.feature_sigmas["view2"] < 4.7
-    assert any(w.startswith("view1: its feature fit") for w in r.warnings)
-    assert not any(w.startswith("view2") for w in r.warnings)
-    s = r.summary()
-    assert s["consistent"] is False and len(s["pairs"]) == 6 and s["feature_fit_sd_off"]["view1"] > 4.7
+    assert any(w.startswith("view1: its feature fit") for w in r.notes)
+    assert not any(w.startswith("view2") for w in r.notes)
+    s = r.summary()  # a wrong feature fit is a note: the refined rig itself is consistent
+    assert s["consistent"] is True and len(s["pairs"]) == 6 and s["feature_fit_sd_off"]["view1"] > 4.7
 
 
 def _edge(a, b, truth, rng, cov, off_m=0.0):

@@ -13,18 +13,19 @@ On rendered 8 s sessions with 1000 ppm (seeds 11-12) the errors, -51 and -67 ppm
 deviations of 42 and 30 ppm, give 103 µs for the same wander when solved for RMS error/std = 1.
 
 Detection limit of short sessions (issue 12, session 7). On rendered people sessions (scale 0.5)
-1000 ppm is found over 8 s and is at the limit over 4 s. The drift reaches the loop in full: a
-drift session and the clean session of the same seed have byte-identical images and probes and
-differ only in the LQ stamps (which follow the simulator's clock formulas after dejittering,
-``tests/align/test_timestamps.py``), and the joint non-linear fit of pose, shift and drift reads the
-clean session's own drift plus 999 and 1000 ppm (seeds 11, 12). What limits the power is the
-noise of ``b``: the clean sessions' fitted drift is -352 and -173 ppm (-554..+268 ppm over the
-held-out training folds), because the figures carry few and slow features (2-44 of about 130 per
-probe, 0.05-0.26 px/ms), so one probe's shift is off by about 0.7 ms RMS even at the true pose, and
-``b`` correlates with the pose (0.6-0.7 with its x translation). Per-probe shifts read at the base
-fit's pose show only about half the drift (session 6's lead: ~470 ppm): that pose, fitted with a
-constant shift, absorbs half the drift through the same correlation; the loop refits the pose with
-the drift and does not lose it.
+1000 ppm is found over 8 s (4 of 4 seeds; 500 ppm 5 of 6) and only on 1 of 8 seeds over 4 s. The
+drift reaches the loop in full: a drift session and the clean session of the same seed have
+byte-identical images and probes and differ only in the LQ stamps (which follow the simulator's clock
+formulas after dejittering, ``tests/align/test_timestamps.py``), and the joint fit of pose, shift and
+drift reads the clean session's own drift plus 999 and 1000 ppm (seeds 11, 12). Over 4 s the clean
+sessions' own drift is biased and noisy: -204 ppm mean, 116 ppm sd over seeds 11-18 (8 s: -11 and
+51 ppm, seeds 11-14). The figures carry few and slow features (2-44 of about 130 per probe,
+0.05-0.26 px/ms), and over 4 s ``b`` correlates with the pose (0.6-0.7 with its x translation): the
+moving features move the fitted pose 0.4-1.7 mm in x from where the static ones put it, and the drift
+fitted with it reads 240 ppm lower on average than at the static features' pose (there: +26 ppm).
+Per-probe shifts read at the base fit's pose show only half a drift (session 6's ~470 ppm): that pose,
+fitted with a constant shift, absorbs half of it through the same correlation; the loop refits the
+pose with the drift and does not lose it.
 """
 from __future__ import annotations
 

@@ -44,6 +44,7 @@ and its keys) is in :mod:`align.warp_splat`; slow per-pixel references in :mod:`
 from __future__ import annotations
 
 import threading
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -53,8 +54,21 @@ from align.warp_numpy import splat_numpy
 from align.warp_reference import DEFAULT_EDGE_REL, default_footprint, warp_depth_loop, warp_depth_naive_loop
 from align.warp_splat import SourcePoints, SplatGrid, splat_offsets
 
-__all__ = ["DEFAULT_EDGE_REL", "DepthWarper", "register_color", "warp_depth", "warp_depth_loop",
+__all__ = ["DEFAULT_EDGE_REL", "CropMotion", "DepthWarper", "register_color", "warp_depth", "warp_depth_loop",
            "warp_depth_naive_loop"]
+
+
+@dataclass(frozen=True)
+class CropMotion:
+    """The source points' motion as :meth:`DepthWarper.warp` adds it, over the warper's source crop
+    (:attr:`DepthWarper.crop`, row-major, ``N`` points): ``dst`` ``(3, N)`` float32 metres, the motion
+    rotated into the destination camera frame (``R m``, each row contiguous), and ``dz`` ``(N,)``
+    float32 metres, its depth component in the source frame (``m_z``, the continuity test's).
+    :meth:`DepthWarper.crop_motion` makes it from an image of motions; :mod:`align._flow_kernel`
+    writes it directly."""
+
+    dst: np.ndarray
+    dz: np.ndarray
 
 
 class DepthWarper:
@@ -178,32 +192,32 @@ class DepthWarper:
         return u, v, w, valid
 
     # ------------------------------------------------------------------ the warp
-    def __call__(self, depth: np.ndarray, *, motion: np.ndarray | None = None) -> np.ndarray:
+    def __call__(self, depth: np.ndarray, *, motion=None) -> np.ndarray:
         return self.warp(depth, motion=motion)
 
-    def warp(self, depth: np.ndarray, *, motion: np.ndarray | None = None) -> np.ndarray:
+    def warp(self, depth: np.ndarray, *, motion=None) -> np.ndarray:
         """Warp one source depth image ``(H_src, W_src)`` float32 metres (NaN = none) to the destination.
 
         Steps 1-2 here (flat arrays over the source crop: the x-neighbour of pixel ``k`` is
         ``k + 1``, row ends masked, the y-neighbour ``k + W``), steps 3-5 in the engine.
 
         ``motion``: ``(H_src, W_src, 3)`` displacement of each source point in the source camera
-        frame, metres (:mod:`align.warp_motion`: the scene's motion between the source frame and
-        the destination's instant); the points move, the surface links stay those of the source
-        grid. ``None``: no motion (the default).
+        frame, metres (:mod:`align.motion_flow`: the scene's motion between the source frame and
+        the destination's instant), or the same as a :class:`CropMotion`; the points move, the
+        surface links stay those of the source grid. ``None``: no motion (the default).
         """
         d2 = self._check_shape(depth)
         r0, r1, c0, c1 = self.crop
         d2 = np.ascontiguousarray(d2[r0:r1, c0:c1])
         ws = self._workspace()
         d = d2.ravel()
-        moved = None
+        if motion is not None and not isinstance(motion, CropMotion):
+            motion = self.crop_motion(motion)
+        if motion is not None and motion.dz.shape != d.shape:
+            raise WarpInputError(f"motion covers {motion.dz.size} source points, the warp's crop {d.size}")
+        u, v, w, valid = self._forward(d, ws, None if motion is None else motion.dst)
         if motion is not None:
-            m = np.asarray(motion, np.float32)[r0:r1, c0:c1].reshape(-1, 3)
-            moved = tuple(self.T.R.astype(np.float32) @ m.T)  # (3, N): each row contiguous
-        u, v, w, valid = self._forward(d, ws, moved)
-        if motion is not None:
-            d = d + m[:, 2]  # the moved points' source depth: the continuity test's input
+            d = d + motion.dz  # the moved points' source depth: the continuity test's input
         with np.errstate(invalid="ignore"):
             if not valid.all() and np.any(~valid & (d > 0)):  # behind the destination camera
                 d = np.where(valid, d, np.float32(np.nan))
@@ -212,6 +226,15 @@ class DepthWarper:
         if self.engine == "numba":
             return splat_numba(pts, self.grid, ws["zkey"])
         return splat_numpy(pts, self.grid, ws)
+
+    def crop_motion(self, motion: np.ndarray) -> "CropMotion":
+        """``motion`` ``(H_src, W_src, 3)`` (source camera frame, metres) laid out as :meth:`warp` uses it."""
+        r0, r1, c0, c1 = self.crop
+        m = np.asarray(motion, np.float32)
+        if m.shape != (*self.K_src.shape, 3):
+            raise WarpInputError(f"motion is {m.shape}, the source camera needs {(*self.K_src.shape, 3)}")
+        m = m[r0:r1, c0:c1].reshape(-1, 3)
+        return CropMotion(dst=self.T.R.astype(np.float32) @ m.T, dz=np.ascontiguousarray(m[:, 2]))
 
     def _check_shape(self, depth: np.ndarray) -> np.ndarray:
         d = np.asarray(depth, dtype=np.float32)

@@ -6,7 +6,7 @@ import pytest
 
 from align.errors import WarpInputError
 from align.motion import MotionReference
-from align.motion_flow import ColorFlow, FlowMotion, SceneFlow, flow_image
+from align.motion_flow import ColorFlow, FlowMotion, SceneFlow, flow_image, moving_region
 from align.warp import DepthWarper
 from capture.camera import Intrinsics, Transform
 from tests.align.scene import cast, room, texture
@@ -126,6 +126,8 @@ def _direct_motion(sf, d, dx, flow, scale):
             shift[i, j] = q - (x, y)
     out, r = m.copy(), -(-sf.fill_px // st)
     for y, x in zip(*np.nonzero(~trusted)):
+        if st == 1 and not d[y, x] > 0:  # a sample without depth needs no motion (a block's others may)
+            continue
         win = (slice(max(y - r, 0), y + r + 1), slice(max(x - r, 0), x + r + 1))
         if trusted[win].any():
             out[y, x] = m[win][trusted[win]].mean(axis=0)
@@ -162,3 +164,47 @@ def test_compiled_scene_flow_equals_a_direct_loop(distortion, stride):
     # with lens distortion the ray through the target is interpolated in the ray grid: 0.1 mm here (pixels 0.05 rad)
     atol = 1e-4 if distortion else 2e-5
     np.testing.assert_allclose(m[same | trusted & ref_trusted], ref_m[same | trusted & ref_trusted], atol=atol)
+
+
+@pytest.mark.parametrize("stride", [1, 2])
+def test_motion_laid_out_for_the_warp_equals_the_motion_image_rotated(stride):
+    f = _frames((0.0, 0.2, 2.2), (-0.05, 0.01, -0.04), 0.25)
+    warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
+    sf = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"], stride=stride)
+    flow = ColorFlow()(*(flow_image(c) for c in f["color"]))
+    m, _ = sf.motion(*f["depth"], flow, scale=0.25)
+    crop = sf.crop_motion(*f["depth"], flow, scale=0.25, warper=warper)
+    r0, r1, c0, c1 = warper.crop
+    direct = m[r0:r1, c0:c1].reshape(-1, 3).astype(np.float64)  # independent: a float64 rotation of the image
+    np.testing.assert_allclose(crop.dst, warper.T.R @ direct.T, atol=1e-6)
+    np.testing.assert_array_equal(crop.dz, m[r0:r1, c0:c1, 2].ravel())
+    assert np.abs(crop.dst).max() > 0.005  # the person moved
+    ref = warper(f["depth"][0], motion=crop)
+    np.testing.assert_allclose(ref, warper(f["depth"][0], motion=m), atol=1e-5)
+
+
+def test_flow_on_the_moving_region_only():
+    f = _frames((0.0, 0.2, 2.2), (0.07, 0.0, 0.0), 0.25)
+    a, b = (flow_image(c) for c in f["color"])
+    diff = cv2.blur(cv2.absdiff(a, b), (5, 5)) > 10
+    x0, y0, x1, y1 = moving_region(a, b, margin_px=4)
+    inside = np.zeros(a.shape, bool)
+    inside[y0:y1, x0:x1] = True
+    assert diff.any() and not (diff & ~inside).any()  # every change within the rectangle
+    assert inside.mean() < 0.6 and (x1 - x0, y1 - y0) != a.shape[::-1]  # and the rectangle is not the image
+    assert not cv2.blur(cv2.absdiff(a, b), (5, 5))[~cv2.dilate(inside.astype(np.uint8), np.ones((9, 9)))
+                                                   .astype(bool) & ~inside].any() > 10
+    assert moving_region(a, a) is None
+    rf = ColorFlow().moving(a, b)
+    assert (rf.width, rf.height) == a.shape[::-1] and rf.field.shape[:2] != a.shape
+    still = ColorFlow().moving(a, a)
+    assert still.field.size == 0
+    sf = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"])
+    m, trusted = sf.motion(f["depth"][0], f["depth"][0], still)  # nothing moves: all still, trusted where depth
+    assert not m.any() and trusted[np.isfinite(f["depth"][0])].mean() > 0.8  # the rest: outside the colour image
+    warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
+    whole = FlowMotion(lambda i: f["depth"][i], lambda i: f["color"][i], warper, sf, region=False)(0, 1, 0.25)
+    region = FlowMotion(lambda i: f["depth"][i], lambda i: f["color"][i], warper, sf)(0, 1, 0.25)
+    plain = _mae(warper(f["depth"][0]), f["truth"], f["roi"])
+    region, whole = _mae(region, f["truth"], f["roi"]), _mae(whole, f["truth"], f["roi"])
+    assert abs(region - whole) < 0.1 * whole < 0.1 * plain, (region, whole, plain)  # the same flow, but for DIS's context

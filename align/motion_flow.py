@@ -52,10 +52,6 @@ DEFAULT_MAX_JUMP_M = 0.15
 DEFAULT_FILL_PX = 7
 #: the motion is found for every this-many-th sample along each axis; its block of samples shares it
 DEFAULT_STRIDE = 1
-#: the moving region: grey levels (0-255) by which the two flow images, box-blurred, must differ
-DEFAULT_CHANGE_GREY = 10
-#: the moving region is grown by this many flow-image pixels on every side (the flow's context)
-DEFAULT_REGION_MARGIN_PX = 16
 
 
 def flow_image(color: np.ndarray, *, scale: float = DEFAULT_FLOW_SCALE) -> np.ndarray:
@@ -65,49 +61,6 @@ def flow_image(color: np.ndarray, *, scale: float = DEFAULT_FLOW_SCALE) -> np.nd
     if scale == 1:
         return np.ascontiguousarray(g, np.uint8)
     return cv2.resize(g, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-
-
-@dataclass(frozen=True)
-class RegionFlow:
-    """Optical flow found on one rectangle of the flow image only (:meth:`ColorFlow.moving`): ``field``
-    ``(hr, wr, 2)`` float32 pixels, the flow of the pixels ``[y0, y0 + hr) x [x0, x0 + wr)``; ``width``,
-    ``height`` the whole flow image's size. Outside the rectangle the scene is still (flow 0)."""
-
-    field: np.ndarray
-    x0: int
-    y0: int
-    width: int
-    height: int
-
-    @classmethod
-    def whole(cls, flow: np.ndarray) -> "RegionFlow":
-        """A flow ``(h, w, 2)`` of the whole image."""
-        f = np.ascontiguousarray(flow, np.float32)
-        return cls(field=f, x0=0, y0=0, width=f.shape[1], height=f.shape[0])
-
-
-def moving_region(a: np.ndarray, b: np.ndarray, *, change_grey: float = DEFAULT_CHANGE_GREY,
-                  margin_px: int = DEFAULT_REGION_MARGIN_PX, min_px: int = 32) -> tuple[int, int, int, int] | None:
-    """The rectangle ``(x0, y0, x1, y1)`` (pixels, ``x1, y1`` exclusive) of two grey images ``(h, w)``
-    uint8 holding everything that changed between them (5x5 box means differing by more than
-    ``change_grey``), grown by ``margin_px`` on every side and to at least ``min_px`` a side within the
-    image; ``None`` when nothing changed. Camera noise averages out in the box means; a moving edge
-    of contrast ``c`` changes them by up to ``c``."""
-    diff = cv2.blur(cv2.absdiff(a, b), (5, 5))
-    x, y, w, h = cv2.boundingRect((diff > change_grey).astype(np.uint8))
-    if w == 0 or h == 0:
-        return None
-    H, W = a.shape
-    box = []
-    for lo, hi, size in ((x, x + w, W), (y, y + h, H)):
-        lo, hi = max(lo - margin_px, 0), min(hi + margin_px, size)
-        side = min(min_px, size)
-        if hi - lo < side:
-            lo = min(max((lo + hi - side) // 2, 0), size - side)
-            hi = lo + side
-        box.append((lo, hi))
-    (x0, x1), (y0, y1) = box
-    return x0, y0, x1, y1
 
 
 class ColorFlow:
@@ -126,21 +79,6 @@ class ColorFlow:
         if a.shape != b.shape:
             raise WarpInputError(f"flow images differ in size: {a.shape} and {b.shape}")
         return dis.calc(a, b, None)
-
-    def moving(self, a: np.ndarray, b: np.ndarray, *, change_grey: float = DEFAULT_CHANGE_GREY,
-               margin_px: int = DEFAULT_REGION_MARGIN_PX) -> RegionFlow:
-        """The flow of ``a`` into ``b`` on their moving region only (:func:`moving_region`; the rest is
-        still): the same flow at a fraction of the cost where little of the image moves."""
-        if a.shape != b.shape:
-            raise WarpInputError(f"flow images differ in size: {a.shape} and {b.shape}")
-        h, w = a.shape
-        box = moving_region(a, b, change_grey=change_grey, margin_px=margin_px)
-        if box is None:
-            return RegionFlow(field=np.zeros((0, 0, 2), np.float32), x0=0, y0=0, width=w, height=h)
-        x0, y0, x1, y1 = box
-        crop = (slice(y0, y1), slice(x0, x1))
-        return RegionFlow(field=self(np.ascontiguousarray(a[crop]), np.ascontiguousarray(b[crop])), x0=x0, y0=y0,
-                          width=w, height=h)
 
 
 class SceneFlow:
@@ -173,38 +111,26 @@ class SceneFlow:
 
         Args:
             depth_o, depth_x: HQ depth frames ``(H, W)`` float32 metres (NaN = none).
-            flow: :class:`ColorFlow`'s flow of ``o``'s grey colour image into ``x``'s (:func:`flow_image`):
-                ``(h, w, 2)`` float32 or a :class:`RegionFlow`.
+            flow: :class:`ColorFlow`'s flow ``(h, w, 2)`` float32 of ``o``'s grey colour image into ``x``'s
+                (:func:`flow_image`).
             scale: the motion returned is this fraction of the motion to ``x`` (the LQ instant's share).
         Returns:
             ``motion`` ``(H, W, 3)`` float32 metres in ``o``'s depth camera frame (0 where neither the
             sample nor a trusted neighbour within ``fill_px`` has one) and ``trusted`` ``(H, W)`` bool.
         """
-        from align._flow_kernel import expand_blocks
-
         d, dx = self._depths(depth_o, depth_x)
-        motion, trusted, shift = self._blocks(d, dx, flow, scale)
+        out, trusted = self._planar(d, dx, flow, scale, np.eye(3, dtype=np.float32), (0, d.shape[0], 0, d.shape[1]), 3)
         st = self.stride
-        if st == 1:
-            return motion, trusted
-        full = np.empty((*d.shape, 3), np.float32)
-        expand_blocks(motion, trusted, shift, d, dx, st, np.float32(scale), self.max_jump_m, full)
-        return full, np.repeat(np.repeat(trusted, st, axis=0), st, axis=1)[:d.shape[0], :d.shape[1]]
+        trusted = np.repeat(np.repeat(trusted, st, axis=0), st, axis=1)[:d.shape[0], :d.shape[1]] if st > 1 else trusted
+        return np.ascontiguousarray(np.moveaxis(out, 0, -1)), trusted
 
     def crop_motion(self, depth_o: np.ndarray, depth_x: np.ndarray, flow, *, scale: float, warper) -> CropMotion:
         """:meth:`motion` laid out for ``warper`` (:class:`align.warp.DepthWarper` from the HQ depth camera):
-        rotated into its destination camera, over its source crop (:class:`align.warp.CropMotion`), in one
-        compiled pass: no ``(H, W, 3)`` image of motions, no rotation of one."""
-        from align._flow_kernel import crop_motion
-
+        rotated into its destination camera, over its source crop (:class:`align.warp.CropMotion`), as the
+        compiled pass writes it: no ``(H, W, 3)`` image of motions, no rotation of one, no copy."""
         d, dx = self._depths(depth_o, depth_x)
-        motion, trusted, shift = self._blocks(d, dx, flow, scale)
-        r0, r1, c0, c1 = warper.crop
-        n = (r1 - r0) * (c1 - c0)
-        out = CropMotion(dst=np.empty((3, n), np.float32), dz=np.empty(n, np.float32))
-        crop_motion(motion, trusted, shift, d, dx, self.stride, np.float32(scale), self.max_jump_m,
-                    warper.T.R.astype(np.float32), np.array(warper.crop, np.int64), out.dst, out.dz)
-        return out
+        out, _ = self._planar(d, dx, flow, scale, warper.T.R.astype(np.float32), tuple(int(c) for c in warper.crop), 4)
+        return CropMotion(dst=out[:3].reshape(3, -1), dz=out[3].reshape(-1))
 
     def _depths(self, depth_o: np.ndarray, depth_x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         d = np.ascontiguousarray(depth_o, np.float32)
@@ -213,28 +139,34 @@ class SceneFlow:
                                  f"{self._rays.shape[:2]}")
         return d, np.ascontiguousarray(depth_x, np.float32)
 
-    def _blocks(self, d: np.ndarray, dx: np.ndarray, flow, scale: float):
-        """Steps 1-3 and the fill on every ``stride``-th sample: ``(motion (Hs, Ws, 3), trusted, shift)``
-        (:func:`align._flow_kernel.scene_motion`'s)."""
-        from align._flow_kernel import fill_untrusted, scene_motion
+    def _planar(self, d: np.ndarray, dx: np.ndarray, flow, scale: float, R: np.ndarray, crop: tuple, channels: int):
+        """Steps 1-3, the fill and (``stride`` > 1) the blocks' expansion over the rows ``crop[0]:crop[1]`` and
+        columns ``crop[2]:crop[3]``: ``(out (channels, Hc, Wc), trusted (Hs, Ws))`` (:mod:`align._flow_kernel`)."""
+        from align._flow_kernel import expand_blocks, fill_untrusted, scene_motion
 
         f32 = np.float32
-        flow = flow if isinstance(flow, RegionFlow) else RegionFlow.whole(flow)
         Kd, Kc, s = self.K_depth, self.K_color, self.flow_scale
         uv = np.stack(self._colour_position(d)) if Kc.has_distortion else np.zeros((2, 0, 0), f32)
-        st = self.stride
-        low = (-(-d.shape[0] // st), -(-d.shape[1] // st))
-        motion, trusted, shift = np.empty((*low, 3), f32), np.empty(low, bool), np.empty((*low, 2), f32)
-        kd = np.zeros(0, f32) if Kd.has_distortion else np.array([Kd.fx, Kd.fy, Kd.cx, Kd.cy], f32)
+        cams = (self._rays, self._Rr, self._t, np.array([Kc.fx, Kc.fy, Kc.cx, Kc.cy, s], f32),
+                np.array([Kd.fx / Kc.fx / s, Kd.fy / Kc.fy / s], f32),
+                np.zeros(0, f32) if Kd.has_distortion else np.array([Kd.fx, Kd.fy, Kd.cx, Kd.cy], f32), uv.astype(f32))
+        st, (r0, r1, c0, c1) = self.stride, crop
+        g0, h0 = r0 - r0 % st, c0 - c0 % st  # blocks on the image's grid, whatever the crop
+        grid = (np.int64(g0), np.int64(h0), np.int64(st))
+        low = (-(-(r1 - g0) // st), -(-(c1 - h0) // st))
+        out, trusted, shift = np.empty((channels, *low), f32), np.empty(low, bool), np.empty((*low, 2), f32)
         ubox = np.zeros(4, np.int64)
-        scene_motion(d, dx, np.ascontiguousarray(flow.field, f32), np.array([flow.x0, flow.y0, flow.width, flow.height],
-                     np.int64), self._rays, self._Rr, self._t, np.array([Kc.fx, Kc.fy, Kc.cx, Kc.cy, s], f32),
-                     np.array([Kd.fx / Kc.fx / s, Kd.fy / Kc.fy / s], f32), kd, uv.astype(f32), f32(scale),
-                     self.max_jump_m, st, motion, trusted, shift, ubox)
+        scene_motion(d, dx, np.ascontiguousarray(flow, f32), cams, np.ascontiguousarray(R, f32), grid, f32(scale),
+                     self.max_jump_m, out, trusted, shift, ubox)
         if self.fill_px > 0:  # stride 1: only samples with depth need it; else a block's others may
             box = ubox if st == 1 else np.array([0, low[0], 0, low[1]], np.int64)
-            fill_untrusted(motion, trusted, -(-self.fill_px // st), box, st == 1, d, st)
-        return motion, trusted, shift
+            fill_untrusted(out, trusted, -(-self.fill_px // st), box, st == 1, d, grid)
+        if st == 1:
+            return out, trusted
+        full = np.empty((channels, r1 - r0, c1 - c0), f32)
+        expand_blocks(out, trusted, shift, d, dx, np.ascontiguousarray(R, f32), grid, (np.int64(r0), np.int64(c0)),
+                      f32(scale), self.max_jump_m, full)
+        return full, trusted
 
     def _colour_position(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each sample's position on the reduced flow image (x, y), NaN where it has no depth (a colour
@@ -265,16 +197,17 @@ class FlowMotion:
             when it has none (the pair then falls back to :mod:`align.motion`'s edges).
         warper: :class:`align.warp.DepthWarper` from the HQ depth camera to the LQ image.
         scene_flow: :class:`SceneFlow` of the HQ rig.
-        region: the flow only on the moving region of the two colour images (:meth:`ColorFlow.moving`);
-            ``False``: on the whole image.
+        warp: ``warp(depth, motion)`` -> the HQ frame warped by ``warper`` with its points moved
+            (:class:`align.warp.CropMotion`), ``(H_lq, W_lq)`` metres; ``None``: ``warper.warp`` (an edge
+            rule that warps its own way passes its warp, :meth:`align.reference_edges.EdgeRule.warp`).
     """
 
     def __init__(self, read_depth, read_color, warper, scene_flow: SceneFlow, *, keep: int = 4,
-                 region: bool = True) -> None:
+                 warp=None) -> None:
         self._read_depth, self._read_color, self.warper, self.scene_flow = read_depth, read_color, warper, scene_flow
+        self._warp = warp
         self._flow = ColorFlow()
         self._keep = max(int(keep), 2)
-        self.region = bool(region)
         self._depth: dict[int, np.ndarray] = {}
         self._grey: dict[int, np.ndarray | None] = {}
 
@@ -296,6 +229,7 @@ class FlowMotion:
         if go is None or gx is None:
             return None
         do, dx = (self._cached(self._depth, k, self._read_depth) for k in (own, other))
-        flow = self._flow.moving(go, gx) if self.region else self._flow(go, gx)
-        motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper)  # already frac of the way
+        motion = self.scene_flow.crop_motion(do, dx, self._flow(go, gx), scale=frac, warper=self.warper)  # already frac of the way
+        if self._warp is not None:
+            return self._warp(do, motion)
         return moved_reference(self.warper, do, motion, 1.0)

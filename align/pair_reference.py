@@ -94,7 +94,9 @@ class PairReferences:
         moved = None
         if self.options.motion_model == "flow" and hq_color is not None:
             read_color, K_color, T_color_depth = hq_color
-            moved = FlowMotion(read_hq, read_color, self._warper, SceneFlow(K_hq, K_color, T_color_depth))
+            moved = FlowMotion(read_hq, read_color, self._warper, SceneFlow(K_hq, K_color, T_color_depth),
+                               warp=self._warp_moved)
+        self._moved_mask: np.ndarray | None = None  # what the rule masked at the moved warp, this pair
         self.motion = MotionReference(self._warp, t_hq_us, enabled=self.options.motion,
                                       min_dt_us=1000 * self.options.motion_min_dt_ms, moved=moved)
 
@@ -106,12 +108,18 @@ class PairReferences:
             self._frame_masks[i] = mask
         return depth
 
+    def _warp_moved(self, depth: np.ndarray, motion) -> np.ndarray:
+        """An HQ frame warped with its points moved by scene flow, as the rule warps (its mask kept)."""
+        out, self._moved_mask = self.rule.warp(self._warper, depth, motion=motion)
+        return out
+
     def __call__(self, i: int, dt_us: float) -> PairReference:
         """The reference of HQ frame ``i`` for the LQ frame exposed ``dt_us`` after it (µs, on the HQ clock:
         ``t_lq - (t_hq + shift)``)."""
+        self._moved_mask = None
         ref, pm = self.motion(int(i), float(dt_us))
         depth, mask = self.rule.apply(ref)
-        at_warp = self._frame_masks.get(int(i))
+        at_warp = self._moved_mask if pm.model == "scene flow" else self._frame_masks.get(int(i))
         if at_warp is not None:  # the rule's mask at the warp, where the pair's reference has no depth
             mask = mask | (at_warp & ~np.isfinite(depth))
         return PairReference(depth=depth, motion=pm, edge_mask=mask)

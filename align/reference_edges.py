@@ -125,11 +125,12 @@ class EdgeRule:
         reach, mask_px, mixed = RULES[name]
         return cls(name=name, edge_reach=reach, mask_px=mask_px, edge_rel=edge_rel, mixed=mixed)
 
-    def warp(self, warper, hq: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    def warp(self, warper, hq: np.ndarray, *, motion=None) -> tuple[np.ndarray, np.ndarray | None]:
         """One HQ frame ``(h, w)`` float32 metres warped by ``warper`` (:class:`align.warp.DepthWarper`
         built with :attr:`edge_reach`) as the rule wants it: ``(depth, mask)``, ``mask`` the pixels the
         rule set to NaN at this step (``None``: none; every rule but ``"mixed"`` returns the plain warp,
-        the same array the warper gives).
+        the same array the warper gives). ``motion``: the HQ points moved before every warp
+        (:meth:`align.warp.DepthWarper.warp`'s; scene flow to the LQ instant), ``None``: not moved.
 
         ``"mixed"``: two warps, one without the distrusted samples (the reference) and one with them
         at the nearest depth around them; where the second has a surface the first lacks or has
@@ -138,16 +139,16 @@ class EdgeRule:
         none, so that the count compares with the other rules'.
         """
         if not self.mixed:
-            return warper(hq), None
+            return warper(hq, motion=motion), None
         hq = np.asarray(hq, np.float32)
         bad = mixed_samples(hq, edge_rel=self.edge_rel, k_sigma=self.k_sigma)
-        ref = warper(np.where(bad, np.float32(np.nan), hq))
-        occluders = warper(np.where(bad, nearest_around(hq), hq))
+        ref = warper(np.where(bad, np.float32(np.nan), hq), motion=motion)
+        occluders = warper(np.where(bad, nearest_around(hq), hq), motion=motion)
         with np.errstate(invalid="ignore"):
             hidden = np.isfinite(occluders) & ~(np.abs(ref - occluders) <= self.edge_rel * occluders)
         hide = hidden | occluded_side(occluders, radius_px=self.mask_px, edge_rel=self.edge_rel)
         out = np.where(hide, np.float32(np.nan), ref).astype(np.float32, copy=False)
-        return out, np.isfinite(warper(hq)) & ~np.isfinite(out)
+        return out, np.isfinite(warper(hq, motion=motion)) & ~np.isfinite(out)
 
     def apply(self, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The reference ``(H, W)`` float32 metres with the rule's mask set to NaN, and the mask."""

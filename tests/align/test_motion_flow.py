@@ -6,7 +6,7 @@ import pytest
 
 from align.errors import WarpInputError
 from align.motion import MotionReference
-from align.motion_flow import ColorFlow, FlowMotion, SceneFlow, flow_image, moving_region
+from align.motion_flow import ColorFlow, FlowMotion, SceneFlow, flow_image
 from align.warp import DepthWarper
 from capture.camera import Intrinsics, Transform
 from tests.align.scene import cast, room, texture
@@ -132,13 +132,22 @@ def _direct_motion(sf, d, dx, flow, scale):
         if trusted[win].any():
             out[y, x] = m[win][trusted[win]].mean(axis=0)
     full = np.zeros((H, W, 3))
-    for y, x in np.ndindex(H, W):  # the block's motion; depth: the sample's own change along the block's shift
+    mj = float(sf.max_jump_m)
+    for y, x in np.ndindex(H, W):  # bilinear over the block samples on its surface; depth: its own change
         i, j = y // st, x // st
-        full[y, x] = out[i, j]
-        ix, iy = (int(np.floor(c + 0.5)) for c in shift[i, j] + (x, y))
-        if st > 1 and trusted[i, j] and d[y, x] > 0 and 0 <= ix < W and 0 <= iy < H \
-                and abs(dx[iy, ix] - d[y, x]) <= float(sf.max_jump_m):
-            full[y, x, 2] = scale * (dx[iy, ix] - d[y, x])
+        acc, wsum, tsum, sh = np.zeros(3), 0.0, 0.0, np.zeros(2)
+        for di, dj in np.ndindex(2, 2):
+            ii, jj = i + di, j + dj
+            w = ((y % st) / st if di else 1 - (y % st) / st) * ((x % st) / st if dj else 1 - (x % st) / st)
+            if w > 0 and ii < out.shape[0] and jj < out.shape[1] and abs(d[ii * st, jj * st] - d[y, x]) <= mj:
+                wsum, acc = wsum + w, acc + w * out[ii, jj]
+                if trusted[ii, jj]:
+                    tsum, sh = tsum + w, sh + w * shift[ii, jj]
+        full[y, x] = acc / wsum if wsum > 0 else out[i, j]
+        if tsum > 0:
+            ix, iy = (int(np.floor(c + 0.5)) for c in sh / tsum + (x, y))
+            if st > 1 and 0 <= ix < W and 0 <= iy < H and abs(dx[iy, ix] - d[y, x]) <= mj:
+                full[y, x, 2] = scale * (dx[iy, ix] - d[y, x])
     return full, np.kron(trusted, np.ones((st, st)))[:H, :W] > 0
 
 
@@ -176,35 +185,44 @@ def test_motion_laid_out_for_the_warp_equals_the_motion_image_rotated(stride):
     crop = sf.crop_motion(*f["depth"], flow, scale=0.25, warper=warper)
     r0, r1, c0, c1 = warper.crop
     direct = m[r0:r1, c0:c1].reshape(-1, 3).astype(np.float64)  # independent: a float64 rotation of the image
-    np.testing.assert_allclose(crop.dst, warper.T.R @ direct.T, atol=1e-6)
-    np.testing.assert_array_equal(crop.dz, m[r0:r1, c0:c1, 2].ravel())
+    # the fill sees only the crop's samples: compare away from the crop's edges (the image's own edges excepted)
+    inner = np.zeros((r1 - r0, c1 - c0), bool)
+    e = sf.fill_px + stride
+    inner[e if r0 > 0 else 0:(r1 - r0 - e) if r1 < m.shape[0] else None,
+          e if c0 > 0 else 0:(c1 - c0 - e) if c1 < m.shape[1] else None] = True
+    inner = inner.ravel()
+    assert 0.8 < inner.mean() < 1
+    np.testing.assert_allclose(crop.dst[:, inner], (warper.T.R @ direct.T)[:, inner], atol=1e-6)
+    np.testing.assert_allclose(crop.dz[inner], m[r0:r1, c0:c1, 2].ravel()[inner], atol=1e-6)
     assert np.abs(crop.dst).max() > 0.005  # the person moved
-    ref = warper(f["depth"][0], motion=crop)
-    np.testing.assert_allclose(ref, warper(f["depth"][0], motion=m), atol=1e-5)
+    ref, same = warper(f["depth"][0], motion=crop), warper(f["depth"][0], motion=m)
+    assert np.isclose(ref, same, atol=1e-5, equal_nan=True).mean() > 0.99
 
 
-def test_flow_on_the_moving_region_only():
+def test_pair_references_warp_flow_carried_pairs_as_their_edge_rule_does():
+    """The mixed rule's warp-time handling (align.reference_edges.EdgeRule.warp) applies to pairs the
+    scene flow carries: the reference is the rule's warp of the moved points, its mask counted."""
+    from align.pair_reference import PairReferences, ReferenceOptions
+    from align.reference_edges import EdgeRule
+
     f = _frames((0.0, 0.2, 2.2), (0.07, 0.0, 0.0), 0.25)
-    a, b = (flow_image(c) for c in f["color"])
-    diff = cv2.blur(cv2.absdiff(a, b), (5, 5)) > 10
-    x0, y0, x1, y1 = moving_region(a, b, margin_px=4)
-    inside = np.zeros(a.shape, bool)
-    inside[y0:y1, x0:x1] = True
-    assert diff.any() and not (diff & ~inside).any()  # every change within the rectangle
-    assert inside.mean() < 0.6 and (x1 - x0, y1 - y0) != a.shape[::-1]  # and the rectangle is not the image
-    assert not cv2.blur(cv2.absdiff(a, b), (5, 5))[~cv2.dilate(inside.astype(np.uint8), np.ones((9, 9)))
-                                                   .astype(bool) & ~inside].any() > 10
-    assert moving_region(a, a) is None
-    rf = ColorFlow().moving(a, b)
-    assert (rf.width, rf.height) == a.shape[::-1] and rf.field.shape[:2] != a.shape
-    still = ColorFlow().moving(a, a)
-    assert still.field.size == 0
-    sf = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"])
-    m, trusted = sf.motion(f["depth"][0], f["depth"][0], still)  # nothing moves: all still, trusted where depth
-    assert not m.any() and trusted[np.isfinite(f["depth"][0])].mean() > 0.8  # the rest: outside the colour image
+    rng = np.random.default_rng(5)
+    depth = [(d * (1 + 0.002 * rng.standard_normal(d.shape))).astype(np.float32) for d in f["depth"]]
+    out = {}
+    for name in ("strict", "mixed"):
+        refs = PairReferences(lambda i: depth[i], K_hq=f["Kh"], K_lq=f["Kl"], T_lq_hq=f["T_lq_hq"],
+                              t_hq_us=np.array([0, 40000]), options=ReferenceOptions(reference_edges=name, motion_model="flow"),
+                              hq_color=(lambda i: f["color"][i], f["Kc"], f["T_color_depth"]))
+        out[name] = refs(0, 10000.0)
+        assert out[name].motion.model == "scene flow"
+    rule = EdgeRule.named("mixed")
     warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
-    whole = FlowMotion(lambda i: f["depth"][i], lambda i: f["color"][i], warper, sf, region=False)(0, 1, 0.25)
-    region = FlowMotion(lambda i: f["depth"][i], lambda i: f["color"][i], warper, sf)(0, 1, 0.25)
-    plain = _mae(warper(f["depth"][0]), f["truth"], f["roi"])
-    region, whole = _mae(region, f["truth"], f["roi"]), _mae(whole, f["truth"], f["roi"])
-    assert abs(region - whole) < 0.1 * whole < 0.1 * plain, (region, whole, plain)  # the same flow, but for DIS's context
+    sf = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"])
+    crop = sf.crop_motion(*depth, ColorFlow()(*(flow_image(c) for c in f["color"])), scale=0.25, warper=warper)
+    moved, at_warp = rule.warp(warper, depth[0], motion=crop)
+    ref, band = rule.apply(moved)
+    m = out["mixed"]
+    assert np.array_equal(m.depth, ref, equal_nan=True)
+    assert np.array_equal(m.edge_mask, band | (at_warp & ~np.isfinite(ref))) and (at_warp & ~band).any()
+    plain = warper(depth[0], motion=crop)  # the strict rule: the plain warper's moved reference, banded
+    assert np.array_equal(out["strict"].depth, EdgeRule.named("strict").apply(plain)[0], equal_nan=True)

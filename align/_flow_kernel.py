@@ -147,7 +147,7 @@ def fill_untrusted(out, trusted, radius, box, depth_only, d, grid):  # pragma: n
                         out[c, yy, xx] = col[x, c] / col[x, C]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def expand_blocks(low, trusted, shift, d, dx, R, grid, corner, scale, max_jump, out):  # pragma: no cover - compiled
     """Every sample ``(r0 + y, c0 + x)`` of ``d`` ``(H, W)`` (``corner = (r0, c0)``) takes the motion of the
     block samples around it (``low`` ``(C, Hs, Ws)`` of :func:`scene_motion` with ``stride``, filled;
@@ -162,38 +162,45 @@ def expand_blocks(low, trusted, shift, d, dx, R, grid, corner, scale, max_jump, 
     H, W = d.shape
     C = out.shape[0]
     Hs, Ws = trusted.shape
-    acc = np.zeros(C, np.float32)
+    inv = np.float32(1) / stride
     for y in range(out.shape[1]):
+        Y = r0 + y
+        i = (Y - g0) // stride
+        wy = np.float32((Y - g0) % stride) * inv
         for x in range(out.shape[2]):
-            Y, X = r0 + y, c0 + x
-            i, j = (Y - g0) // stride, (X - h0) // stride
+            X = c0 + x
+            j = (X - h0) // stride
             z = d[Y, X]
-            wy, wx = np.float32((Y - g0) % stride) / stride, np.float32((X - h0) % stride) / stride
-            acc[:] = 0
-            wsum, tsum, sx, sy = np.float32(0), np.float32(0), np.float32(0), np.float32(0)
+            wx = np.float32((X - h0) % stride) * inv
+            a0 = a1 = a2 = a3 = wsum = tsum = sx = sy = np.float32(0)
             for di in range(2):
+                ii = i + di
+                wi = wy if di else 1 - wy
+                if not (wi > 0 and ii < Hs):
+                    continue
                 for dj in range(2):
-                    ii, jj = i + di, j + dj
-                    w = (wy if di else 1 - wy) * (wx if dj else 1 - wx)
-                    if not (w > 0 and ii < Hs and jj < Ws and abs(d[g0 + ii * stride, h0 + jj * stride] - z) <= max_jump):
+                    jj = j + dj
+                    w = wi * (wx if dj else 1 - wx)
+                    if not (w > 0 and jj < Ws and abs(d[g0 + ii * stride, h0 + jj * stride] - z) <= max_jump):
                         continue
                     wsum += w
-                    for c in range(C):
-                        acc[c] += w * low[c, ii, jj]
+                    a0, a1, a2 = a0 + w * low[0, ii, jj], a1 + w * low[1, ii, jj], a2 + w * low[2, ii, jj]
+                    if C == 4:
+                        a3 += w * low[3, ii, jj]
                     if trusted[ii, jj]:
-                        tsum += w
-                        sx += w * shift[ii, jj, 0]
-                        sy += w * shift[ii, jj, 1]
-            for c in range(C):
-                out[c, y, x] = acc[c] / wsum if wsum > 0 else low[c, i, j]
-            if not tsum > 0:
+                        tsum, sx, sy = tsum + w, sx + w * shift[ii, jj, 0], sy + w * shift[ii, jj, 1]
+            if not wsum > 0:  # on no block sample's surface: its own block's
+                for c in range(C):
+                    out[c, y, x] = low[c, i, j]
                 continue
-            ix = np.int32(np.floor(X + sx / tsum + np.float32(0.5)))
-            iy = np.int32(np.floor(Y + sy / tsum + np.float32(0.5)))
-            if 0 <= ix < W and 0 <= iy < H and abs(dx[iy, ix] - z) <= max_jump:
-                m2 = out[C - 1, y, x] if C == 4 else out[0, y, x] * R[0, 2] + out[1, y, x] * R[1, 2] + out[2, y, x] * R[2, 2]
-                delta = (dx[iy, ix] - z) * scale - m2  # R is orthonormal: m_z = R[:, 2] . (R m)
-                for c in range(3):
-                    out[c, y, x] += R[c, 2] * delta
-                if C == 4:
-                    out[3, y, x] += delta
+            a0, a1, a2, a3 = a0 / wsum, a1 / wsum, a2 / wsum, a3 / wsum
+            if tsum > 0:
+                ix = np.int32(np.floor(X + sx / tsum + np.float32(0.5)))
+                iy = np.int32(np.floor(Y + sy / tsum + np.float32(0.5)))
+                if 0 <= ix < W and 0 <= iy < H and abs(dx[iy, ix] - z) <= max_jump:
+                    m2 = a3 if C == 4 else a0 * R[0, 2] + a1 * R[1, 2] + a2 * R[2, 2]
+                    delta = (dx[iy, ix] - z) * scale - m2  # R is orthonormal: m_z = R[:, 2] . (R m)
+                    a0, a1, a2, a3 = a0 + R[0, 2] * delta, a1 + R[1, 2] * delta, a2 + R[2, 2] * delta, a3 + delta
+            out[0, y, x], out[1, y, x], out[2, y, x] = a0, a1, a2
+            if C == 4:
+                out[3, y, x] = a3

@@ -47,11 +47,11 @@ from align.warp import CropMotion
 #: grey images for the flow are the HQ colour images reduced by this factor
 DEFAULT_FLOW_SCALE = 0.5
 #: a flow target whose depth differs from the point's by more than this is another surface (m)
-DEFAULT_MAX_JUMP_M = 0.15
+DEFAULT_MAX_JUMP_M = 0.08
 #: untrusted samples take the mean motion of trusted ones within this many depth pixels
 DEFAULT_FILL_PX = 7
 #: the motion is found for every this-many-th sample along each axis; its block of samples shares it
-DEFAULT_STRIDE = 1
+DEFAULT_STRIDE = 2
 
 
 def flow_image(color: np.ndarray, *, scale: float = DEFAULT_FLOW_SCALE) -> np.ndarray:
@@ -158,9 +158,8 @@ class SceneFlow:
         ubox = np.zeros(4, np.int64)
         scene_motion(d, dx, np.ascontiguousarray(flow, f32), cams, np.ascontiguousarray(R, f32), grid, f32(scale),
                      self.max_jump_m, out, trusted, shift, ubox)
-        if self.fill_px > 0:  # stride 1: only samples with depth need it; else a block's others may
-            box = ubox if st == 1 else np.array([0, low[0], 0, low[1]], np.int64)
-            fill_untrusted(out, trusted, -(-self.fill_px // st), box, st == 1, d, grid)
+        if self.fill_px > 0:  # only samples with depth (a block sample without one lends its block nothing)
+            fill_untrusted(out, trusted, -(-self.fill_px // st), ubox, True, d, grid)
         if st == 1:
             return out, trusted
         full = np.empty((channels, r1 - r0, c1 - c0), f32)

@@ -126,7 +126,7 @@ def _direct_motion(sf, d, dx, flow, scale):
             shift[i, j] = q - (x, y)
     out, r = m.copy(), -(-sf.fill_px // st)
     for y, x in zip(*np.nonzero(~trusted)):
-        if st == 1 and not d[y, x] > 0:  # a sample without depth needs no motion (a block's others may)
+        if not d[y * st, x * st] > 0:  # a sample without depth needs no motion
             continue
         win = (slice(max(y - r, 0), y + r + 1), slice(max(x - r, 0), x + r + 1))
         if trusted[win].any():

@@ -26,17 +26,35 @@ where ``P_x`` is the same point in frame ``x``. :class:`SceneFlow` finds ``P_x -
 instant, limbs included that moved more than their own width (which choosing per pixel between the
 two frames, :mod:`align.motion`, cannot recover). Disocclusions the own frame did not see stay holes.
 
-Steps 1-3 and the fill run as one compiled pass (:mod:`align._flow_kernel`); with ``stride`` > 1 the
-flow is found for every ``stride``-th sample only, its block sharing it (each sample keeps its own depth
-change). The scene-flow reference needs no plain warp of the pair's frame (:class:`align.motion.MotionReference`).
+Steps 1-3 and the fill run as one compiled pass (:mod:`align._flow_kernel`). With ``stride`` > 1 (2, the
+default) the flow is found for every ``stride``-th sample only; every sample then takes the bilinear mean
+of the motions of the block samples around it that lie on its own surface (depth within ``max_jump_m``),
+so a block across a silhouette does not hand one side the other's motion, and keeps its own depth change
+along their flow. The motion is written rotated into the LQ camera over the warper's source crop
+(:class:`align.warp.CropMotion`), as the warp adds it. The scene-flow reference needs no plain warp of the
+pair's frame (:class:`align.motion.MotionReference`).
 
-Measured (``perf/reference_motion.py``, seeds 1-3 at 7 ms apart, scale 1, strict edges; session 6):
-MAE 3.2 / 4.3 / 3.6 mm against 2.2 for synchronous frames, throughput 0.34 of the plain warp (stride 1,
-the default); stride 2: MAE 3.5 / 4.4 / 3.6 mm, throughput 0.42. Session 5's numpy version: 0.22.
+Measured (``perf/reference_motion.py --frames 10``, clean people sessions 7 ms out of phase, scale 1, strict
+edges; session 7): MAE against truth, chosen on seeds 1-3 / held out 4-6, synchronous frames of the same
+seed in brackets:
+
+==========================================  =======================================================
+scene flow                                  MAE (mm), seeds 1 2 3 / 4 5 6
+==========================================  =======================================================
+stride 1, max jump 0.15 m (session 6)       3.21 4.33 3.60 / 6.79 7.23 2.86
+stride 2 bilinear, max jump 0.08 m (now)    3.12 4.18 3.55 / 6.4 6.6 2.8
+synchronous frames                          (2.2 2.22 2.08 / 2.0 2.2 2.0)
+==========================================  =======================================================
+
+Seeds 4 and 5 stay 4.4 mm above synchronous frames, nearly all of it from pixels off by more than 50 mm
+(silhouettes the flow misplaces). Throughput 0.34 of the plain warp (CPU time, 30 pairs; the plain warp
+9.3-10 ms, DIS 2.8, the motion 10.7 of which the blocks' expansion 6.7): under the 0.5 issue 12 asks,
+so ``edges`` stays :mod:`align.pipeline`'s default. Tried and dropped: optical flow on the rectangle of
+the colour images that changed only (DIS on the smaller image: +0.3 mm MAE on seeds 2 and 3, no faster
+where people fill 75 % of it); still tiles skipping the flow (the inside of a uniform moving surface
+does not change).
 """
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import cv2
 import numpy as np

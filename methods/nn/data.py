@@ -13,6 +13,8 @@ key                shape           meaning
 ``<extra>``        (T, 1, h, w)    any extra per-frame depth layer given to the dataset
                                    (e.g. out-of-fold level-1 predictions), metres, NaN = none
 ``has_color``      ()              1 when the dataset has colour
+``flip``           ()              1 when the sample is flipped horizontally (a vector layer's x
+                                   component, e.g. an optical flow, must then change sign)
 ``camera``         (4,)            LQ depth intrinsics of the crop as seen: ``fx, fy, cx', cy'`` in
                                    pixels, ``cx' = cx - x0``, ``cy' = cy - y0`` and, flipped,
                                    ``cx' = (w - 1) - cx'`` (distortion ignored)
@@ -188,6 +190,7 @@ class AlignedSamples(Dataset):
             out[name] = np.stack([take(arr[i]) for i in range(win.start, win.start + win.length)])[:, None]
         sample = {k2: torch.from_numpy(np.ascontiguousarray(v, dtype=np.float32)) for k2, v in out.items()}
         sample["has_color"] = torch.tensor(float(cache.has_color))
+        sample["flip"] = torch.tensor(float(flip))
         sample["camera"] = crop_camera(cache.ds.lq_intrinsics, y0=y0, x0=x0, w=w, flip=flip)
         sample["index"] = torch.tensor([win.dataset, win.start])
         return sample

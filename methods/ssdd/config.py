@@ -11,6 +11,8 @@
     [level1.optim]  epochs, batch_size, lr, weight_decay, samples_per_epoch, grad_clip, seed
     [level2]        level1_input = "final" | "fold_mean" (what feeds level 2 at inference, below)
                     centre = "frame" | "sequence" (the centred depth code of level 2's frames, below)
+    [level2.motion] kind = "none" | "color" | "depth", flow_scale, warp_state, previous = "none" | "level1" | "output"
+                    (not in the paper: state and previous depth warped by optical flow, methods.ssdd.motion)
     [level2.model]  ... and recurrent = [-1] (ConvLSTM levels; -1 = bottleneck)
     [level2.data]   ... sequence_length = N (frames per training sequence)
     [level2.optim]  ...
@@ -32,6 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from methods.nn.config import DataConfig, OptimConfig
+from methods.ssdd.motion import MotionConfig
 from methods.ssdd.networks import NetConfig
 from methods.ssdd.prefilter import PrefilterConfig
 
@@ -62,6 +65,7 @@ class Level2Config:
     optim: OptimConfig = field(default_factory=OptimConfig)
     level1_input: str = "final"
     centre: str = "frame"
+    motion: MotionConfig = field(default_factory=MotionConfig)
 
     def __post_init__(self) -> None:
         if self.centre not in CENTRES:

@@ -8,7 +8,12 @@ every pixel. Each refuses a dataset of its own training or validation split
 in the method key and provenance.
 
 With a level-1 prefilter in the weights' config (:mod:`methods.ssdd.prefilter`) each frame is
-bilateral-filtered first (the base level 1 corrects).
+bilateral-filtered first (the base level 1 corrects). With level-2 motion (:mod:`methods.ssdd.motion`)
+``ssdd_lstm`` finds each frame's optical flow into the previous frame (from the LQ colour, which it
+then needs, or the LQ depth) and warps its state by it, exactly as in training.
+
+Options of the weights' config that are not in the paper (:attr:`_SSDDBase.not_in_paper`) are named in
+the provenance, so the leaderboard's config column shows them.
 
 torch is imported only when a network is built (``prepare``), so listing methods stays fast.
 """
@@ -19,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from methods.base import FrameInput, check_flag, resolve_device
+from methods.errors import MethodError
 from methods.nn.learned import LearnedDenoiser
 
 
@@ -39,6 +45,15 @@ class _SSDDBase(LearnedDenoiser):
     levels = 1
     defaults = {"weights": None, "fill_holes": False, "allow_train_frames": False}
     param_help = _HELP
+    # the paper's SSDD is the default of each: level 1 on the raw LQ depth, level 2 without motion
+    not_in_paper = ("level1.prefilter.kind", "level2.motion.kind")
+
+    @staticmethod
+    def schema():
+        """The default training config (:func:`methods.nn.learned.deviations` compares against it)."""
+        from methods.ssdd.config import SSDDConfig
+
+        return SSDDConfig()
 
     def check_params(self, params: dict[str, Any]) -> None:
         from methods.nn.weights import weights_meta
@@ -47,7 +62,8 @@ class _SSDDBase(LearnedDenoiser):
         check_flag(params["allow_train_frames"], "allow_train_frames", method=self.name)
         self.meta = weights_meta(self.params["weights"], methods=self.trained_as)
         self.config = self._config(self.meta)
-        self.uses_color = bool(self.config.level1.model.use_color)
+        self.net_color = bool(self.config.level1.model.use_color)
+        self.uses_color = self.net_color or (self.levels == 2 and self.config.level2.motion.kind == "color")
         self.leaked: list[str] = []
 
     def _config(self, meta: dict):
@@ -61,21 +77,22 @@ class _SSDDBase(LearnedDenoiser):
 
         from methods.nn.checkpoint import decode_tensors, load_state
         from methods.ssdd.config import FOLD_PREFIX
-        from methods.ssdd.model import build_level1
-        from methods.ssdd.networks import SSDDLSTMUNet
+        from methods.ssdd.model import build_level1, build_level2
+        from methods.ssdd.motion import FlowSource
 
         f = decode_tensors(self.weights_bytes(), where=self.weights_path, kind="weights")
         dev = torch.device(resolve_device(self.device))
         nets = {"level1": build_level1(self.config.level1)}
         if self.levels == 2:
-            nets["level2"] = SSDDLSTMUNet(self.config.level2.model)
+            nets["level2"] = build_level2(self.config.level2)
             if self.config.level2.level1_input == "fold_mean":
                 nets.update({f"{FOLD_PREFIX}{k}": build_level1(self.config.level1) for k in range(self.config.folds)})
         for name, net in nets.items():
             load_state(net, f.prefixed(f"{name}/"), where=self.weights_path)
             net.to(dev, memory_format=torch.channels_last).eval()   # 1.3-2.5x faster convolutions on CPU
         feeders = [n for k, n in nets.items() if k.startswith(FOLD_PREFIX)] or [nets["level1"]]
-        return {"device": dev, "feeders": feeders, **nets}
+        flow = FlowSource(self.config.level2.motion) if self.config.level2.motion.enabled else None
+        return {"device": dev, "feeders": feeders, "flow": flow, **nets}
 
     def prepare(self) -> None:
         self.runtime.update(self._load())
@@ -89,7 +106,7 @@ class _SSDDBase(LearnedDenoiser):
         dev = self.runtime["device"]
         depth = torch.from_numpy(np.stack([f.depth for f in frames])[:, None]).to(dev)
         rgb = None
-        if self.uses_color:
+        if self.net_color:
             rgb = torch.from_numpy(np.stack([f.color for f in frames]).transpose(0, 3, 1, 2).astype(np.float32)
                                    / 255.0).to(dev)
         base = prefilter_frames((f.depth for f in frames), self.config.level1.prefilter)
@@ -139,15 +156,33 @@ class SSDDLSTMDenoiser(_SSDDBase):
     def start_sequence(self) -> Any:
         return None
 
+    def _flow(self, frame: FrameInput, state: Any):
+        """This frame's flow image and its backward flow ``(1, 2, H, W)`` into the previous frame's (None at
+        a sequence's first frame or without motion)."""
+        import torch
+
+        src = self.runtime["flow"]
+        if src is None:
+            return None, None
+        if src.cfg.kind == "color" and frame.color is None:
+            raise MethodError(f"{self.name}: these weights follow motion by the LQ colour's flow; the frame has no colour")
+        image = src.image(frame.depth, frame.color)
+        if state is None:
+            return image, None
+        return image, torch.from_numpy(src(image, state[1]))[None].to(self.runtime["device"])
+
     def _step(self, frame: FrameInput, state: Any) -> tuple[np.ndarray, Any]:
         import torch
 
         from methods.ssdd.model import level1_depth, level2_step
 
+        l2 = self.config.level2
         depth, rgb, base = self._tensors([frame])
+        image, flow = self._flow(frame, state)
         with torch.inference_mode():
             l1s = [level1_depth(net, depth, rgb, self.config.level1.data, base) for net in self.runtime["feeders"]]
             l1 = l1s[0] if len(l1s) == 1 else torch.stack(l1s).mean(dim=0)
-            out, state = level2_step(self.runtime["level2"], l1, depth, rgb, self.config.level2.data, state,
-                                     sequence_centre=self.config.level2.centre == "sequence")
-        return self._finish(out[0, 0], frame.depth), state
+            out, net_state = level2_step(self.runtime["level2"], l1, depth, rgb, l2.data,
+                                         None if state is None else state[0], sequence_centre=l2.centre == "sequence",
+                                         flow=flow, motion=l2.motion)
+        return self._finish(out[0, 0], frame.depth), (net_state, image)

@@ -7,7 +7,9 @@ centred coding when ``data.depth_scale_m > 0``); level 2 codes the level-1 predi
 frame's centre, so both inputs share one code. Where the net's config asks for it
 (``model.absolute_depth``), the LQ depth relative to 2 m is fed as well (:func:`absolute_code`).
 With a prefilter (``[level1.prefilter]``, :mod:`methods.ssdd.prefilter`) level 1 also takes the
-filtered LQ depth, coded with the LQ frame's centre, and corrects it instead of the raw depth.
+filtered LQ depth, coded with the LQ frame's centre, and corrects it instead of the raw depth. With
+motion (``[level2.motion]``, :mod:`methods.ssdd.motion`) level 2's state and previous depth are warped
+by each frame's optical flow before the frame is seen.
 """
 from __future__ import annotations
 
@@ -16,7 +18,8 @@ import torch
 from methods.nn.config import DataConfig
 from methods.nn.distributed import unwrap
 from methods.nn.losses import masked_l1
-from methods.nn.normalize import decode_depth, encode_depth, frame_centre
+from methods.nn.normalize import decode_depth, encode_depth
+from methods.ssdd.motion import FLOW_X, FLOW_Y, MotionConfig, warp, warp_state
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 
 
@@ -60,30 +63,66 @@ def _level2_inputs(net, level1: torch.Tensor, depth: torch.Tensor, data: DataCon
     return x1, x, valid, centre, absolute_code(net, depth)
 
 
+def build_level2(cfg) -> SSDDLSTMUNet:
+    """A level-2 net for ``cfg`` (:class:`methods.ssdd.config.Level2Config`): it takes the warped previous
+    depth as an input when ``cfg.motion`` feeds it (:mod:`methods.ssdd.motion`)."""
+    return SSDDLSTMUNet(cfg.model, previous=cfg.motion.feeds_previous)
+
+
 def level2_step(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
-                data: DataConfig, state: tuple | None, *, sequence_centre: bool = False) -> tuple[torch.Tensor, tuple]:
+                data: DataConfig, state: tuple | None, *, sequence_centre: bool = False,
+                flow: torch.Tensor | None = None, motion: MotionConfig | None = None) -> tuple[torch.Tensor, tuple]:
     """One frame of level 2: level-1 prediction and LQ depth ``(B, 1, H, W)`` metres -> metres, new state.
 
     ``state``: None at a sequence's first frame, else what the previous call returned (the ConvLSTM
-    state and the frame centre of the code). ``sequence_centre``: code every frame with the first
-    frame's centre (:func:`level2_depth`) instead of its own."""
-    net_state, centre = state if state is not None else (None, None)
+    state, the frame centre of the code and the previous depth kept for the motion). ``sequence_centre``:
+    code every frame with the first frame's centre (:func:`level2_depth`) instead of its own.
+    ``motion`` (:class:`methods.ssdd.motion.MotionConfig`; None: off) with ``flow`` ``(B, 2, H, W)``, this
+    frame's backward flow into the previous frame in pixels (ignored at a sequence's first frame): the
+    state and the previous depth are warped into this frame first."""
+    net_state, centre, prev = state if state is not None else (None, None, None)
+    moving = motion is not None and motion.enabled and state is not None
+    if moving and flow is None:
+        raise ValueError("level 2 with motion needs the flow of every frame after the first")
+    if moving and motion.warp_state:
+        net_state = warp_state(net_state, flow)
     x1, x, valid, own, z = _level2_inputs(net, level1, depth, data, centre if sequence_centre else None)
-    y, net_state = net.step(x1, x, valid, rgb, net_state, z)
-    return decode_depth(y, centre=own, **_code(data)), (net_state, own)
+    xp = None
+    if net.previous:
+        p = level1 if prev is None else warp(prev, flow) if moving else prev
+        xp = encode_depth(p, centre=own, **_code(data))[0]
+    y, net_state = net.step(x1, x, valid, rgb, net_state, z, x_prev=xp)
+    out = decode_depth(y, centre=own, **_code(data))
+    keep = None if motion is None or not motion.feeds_previous else out if motion.previous == "output" else level1
+    return out, (net_state, own, keep)
 
 
 def level2_depth(net: SSDDLSTMUNet, level1: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
-                 data: DataConfig, *, sequence_centre: bool = False) -> torch.Tensor:
-    """Level 2 over sequences ``(B, T, 1, H, W)`` (state from zeros at ``t = 0``) -> metres.
+                 data: DataConfig, *, sequence_centre: bool = False, flow: torch.Tensor | None = None,
+                 motion: MotionConfig | None = None) -> torch.Tensor:
+    """Level 2 over sequences ``(B, T, 1, H, W)`` (state from zeros at ``t = 0``) -> metres: :func:`level2_step`
+    frame by frame, so training's pass is inference's (``flow`` ``(B, T, 2, H, W)`` with ``motion``).
 
     The centred code (``data.depth_scale_m > 0``) is each frame's own median, or with
     ``sequence_centre`` the first frame's for every frame of the sequence: the ConvLSTM state then
     holds depth in the code of the frame it meets (a per-frame median of a crop over a moving person
     jumps by centimetres from frame to frame, which the state cannot tell from motion)."""
-    centre = frame_centre(depth[:, :1]) if sequence_centre and data.depth_scale_m > 0 else None
-    x1, x, valid, centre, z = _level2_inputs(net, level1, depth, data, centre)
-    return decode_depth(net(x1, x, valid, rgb, z), centre=centre, **_code(data))
+    state, outs = None, []
+    at = lambda v, t: None if v is None else v[:, t]  # noqa: E731
+    for t in range(level1.shape[1]):
+        y, state = level2_step(net, level1[:, t], depth[:, t], at(rgb, t), data, state,
+                               sequence_centre=sequence_centre, flow=at(flow, t), motion=motion)
+        outs.append(y)
+    return torch.stack(outs, dim=1)
+
+
+def batch_flow(batch: dict) -> torch.Tensor | None:
+    """The training flows of a batch ``(B, T, 2, h, w)`` from its extra layers (:mod:`methods.ssdd.motion`),
+    the x component negated on horizontally flipped samples; None when the batch has none."""
+    if FLOW_X not in batch:
+        return None
+    sign = 1.0 - 2.0 * batch["flip"].to(batch[FLOW_X].dtype).view(-1, 1, 1, 1, 1)
+    return torch.cat([batch[FLOW_X] * sign, batch[FLOW_Y]], dim=2)
 
 
 def _mask(batch: dict, holes: bool) -> torch.Tensor:
@@ -104,10 +143,12 @@ def level1_loss(data: DataConfig, *, holes: bool = False):
     return loss
 
 
-def level2_loss(data: DataConfig, *, holes: bool = False, sequence_centre: bool = False):
-    """Eq. 32 loss of level 2 over every frame of a batch of sequences with a ``level1`` layer."""
+def level2_loss(data: DataConfig, *, holes: bool = False, sequence_centre: bool = False,
+                motion: MotionConfig | None = None):
+    """Eq. 32 loss of level 2 over every frame of a batch of sequences with a ``level1`` layer (and the
+    flow layers :data:`methods.ssdd.motion.FLOW_X`, ``FLOW_Y`` with ``motion``)."""
     def loss(net, batch):
         pred = level2_depth(net, batch["level1"], batch["lq_depth"], batch["color"], data,
-                            sequence_centre=sequence_centre)
+                            sequence_centre=sequence_centre, flow=batch_flow(batch), motion=motion)
         return masked_l1(pred, batch["reference"], _mask(batch, holes), batch["valid"])
     return loss

@@ -6,9 +6,10 @@ units (:mod:`methods.nn.normalize`):
 * level 1, :class:`SSDDUNet`: input ``[x_lq, valid_lq?, rgb?, z?]`` -> ``x_lq + UNet(...)``, or with a
   prefiltered base ``x_b`` (``base=True``, :mod:`methods.ssdd.prefilter`): ``[x_b, x_lq, valid_lq?, rgb?, z?]``
   -> ``x_b + UNet(...)``;
-* level 2, :class:`SSDDLSTMUNet`: input ``[x_l1, x_lq, valid_lq?, rgb?, z?]`` -> ``x_l1 + UNet(...)``,
+* level 2, :class:`SSDDLSTMUNet`: input ``[x_l1, x_lq, x_prev?, valid_lq?, rgb?, z?]`` -> ``x_l1 + UNet(...)``,
   where ``x_l1`` is the level-1 prediction; ConvLSTM cells at the chosen levels (by default the
-  bottleneck) carry state from frame to frame of a sequence.
+  bottleneck) carry state from frame to frame of a sequence; ``x_prev`` (``previous=True``, not in the
+  paper) is the previous frame's depth warped into this one (:mod:`methods.ssdd.motion`).
 
 ``z`` (``absolute_depth``, off in the built-in configs) is the LQ depth as ``d / 2 m - 1``
 (:func:`methods.ssdd.model.absolute_code`): the centred coding of ``x`` hides how far a surface
@@ -165,16 +166,22 @@ class SSDDLSTMUNet(nn.Module):
     """Level 2 over sequences: ``forward(x_l1, x_lq, valid, rgb)`` with inputs ``(B, T, C, H, W)``.
 
     :meth:`step` processes one frame ``(B, C, H, W)`` with a carried state (streaming inference).
+    ``previous=True``: :meth:`step` also takes ``x_prev`` (required; :func:`methods.ssdd.model.level2_step`
+    makes it), and :meth:`forward` is not available (motion needs the flow: :func:`methods.ssdd.model.level2_depth`).
     """
 
-    def __init__(self, cfg: NetConfig) -> None:
+    def __init__(self, cfg: NetConfig, *, previous: bool = False) -> None:
         super().__init__()
         self.cfg = cfg
-        self.unet = UNet(2 + cfg.extra_channels(), width=cfg.width, levels=cfg.levels,
+        self.previous = bool(previous)
+        self.unet = UNet(2 + int(self.previous) + cfg.extra_channels(), width=cfg.width, levels=cfg.levels,
                          recurrent=cfg.recurrent_levels(), stem=cfg.stem, norm=cfg.norm)
 
-    def step(self, x_l1, x_lq, valid=None, rgb=None, state: dict | None = None, z=None) -> tuple[torch.Tensor, dict]:
-        x = _inputs(x_l1, [x_lq] + self.cfg.optional(valid, rgb, z))
+    def step(self, x_l1, x_lq, valid=None, rgb=None, state: dict | None = None, z=None,
+             x_prev=None) -> tuple[torch.Tensor, dict]:
+        if self.previous != (x_prev is not None):
+            raise ValueError("this level-2 net " + ("needs" if self.previous else "takes no") + " previous depth x_prev")
+        x = _inputs(x_l1, [x_lq, x_prev] + self.cfg.optional(valid, rgb, z))
         res, state = self.unet.step(x, state)
         return x_l1 + res, state
 

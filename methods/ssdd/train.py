@@ -10,7 +10,8 @@
 3. a final level-1 model is trained on all training sequences (``RUN/level1/final/``): it is the
    level 1 of inference, and predicts the validation sequences for level 2's validation;
 4. level 2 is trained on sequences of (OOF level-1 prediction, LQ depth) against the reference
-   (``RUN/level2/``).
+   (``RUN/level2/``); with ``[level2.motion]`` (:mod:`methods.ssdd.motion`) each frame's optical flow
+   into the previous frame is computed once on whole frames (:func:`flows`) and cropped with the rest.
 
 ``RUN/oof.json`` records, for every training sequence, its fold, the model that predicted it and
 the checksums of the sequences that model was trained on; each fold's checkpoint records the same
@@ -34,8 +35,9 @@ from methods.nn.data import AlignedSamples
 from methods.nn.train import RunContext, Trainer, register_trainer
 from methods.nn.trainer import FitJob, seeded
 from methods.ssdd.config import FOLD_PREFIX, Level1Config, SSDDConfig
-from methods.ssdd.model import PREFILTERED, build_level1, level1_depth, level1_loss, level2_loss
-from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
+from methods.ssdd.model import PREFILTERED, build_level1, build_level2, level1_depth, level1_loss, level2_loss
+from methods.ssdd.motion import FLOW_X, FLOW_Y, FlowSource, MotionConfig, sequence_flows
+from methods.ssdd.networks import SSDDUNet
 from methods.ssdd.prefilter import prefilter_frames
 
 OOF_JSON = "oof.json"
@@ -78,6 +80,22 @@ def prefiltered(datasets: list[AlignedDataset], cfg: Level1Config) -> dict[str, 
         return None
     return {PREFILTERED: {ds.checksum: prefilter_frames((ds.lq_depth(i) for i in range(len(ds))), cfg.prefilter)
                           for ds in datasets}}
+
+
+def flows(datasets: list[AlignedDataset], cfg: MotionConfig) -> dict[str, dict[str, np.ndarray]]:
+    """Every frame's backward flow (:func:`methods.ssdd.motion.sequence_flows`) as the extra sample layers
+    ``FLOW_X`` and ``FLOW_Y`` (``{layer: {checksum: (F, H, W)}}``); empty when ``cfg`` is off."""
+    if not cfg.enabled:
+        return {}
+    out: dict[str, dict[str, np.ndarray]] = {FLOW_X: {}, FLOW_Y: {}}
+    src = FlowSource(cfg)
+    for ds in datasets:
+        if cfg.kind == "color" and not any(r["lq_color_file"] for r in ds.rows):
+            raise TrainingError(f"{ds.root}: no LQ colour, which level2.motion.kind = 'color' needs "
+                                "(kind = 'depth' finds the flow on the depth)")
+        f = sequence_flows([src.image(ds.lq_depth(i), ds.lq_color(i)) for i in range(len(ds))], cfg)
+        out[FLOW_X][ds.checksum], out[FLOW_Y][ds.checksum] = f[:, 0], f[:, 1]
+    return out
 
 
 def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset], validation: list[AlignedDataset],
@@ -175,11 +193,13 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     feeders = fold_models if l2.level1_input == "fold_mean" else [final]   # level 2's level 1 at inference
     val_preds = {ds.checksum: np.mean([predict_level1(m, ds, cfg.level1, pre=pre) for m in feeders], axis=0)
                  for ds in validation}
-    job = FitJob(name="level 2", model=seeded(lambda: SSDDLSTMUNet(l2.model), l2.optim.seed),
-                 loss=level2_loss(l2.data, holes=cfg.loss_on_holes, sequence_centre=l2.centre == "sequence"),
-                 train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof}),
+    motion = flows(train + validation, l2.motion)
+    job = FitJob(name="level 2", model=seeded(lambda: build_level2(l2), l2.optim.seed),
+                 loss=level2_loss(l2.data, holes=cfg.loss_on_holes, sequence_centre=l2.centre == "sequence",
+                                  motion=l2.motion),
+                 train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof, **motion}),
                  validation=_samples(validation, l2.data, seed=l2.optim.seed, train=False,
-                                     extra={"level1": val_preds}),
+                                     extra={"level1": val_preds, **motion}),
                  optim=l2.optim, folder=ctx.out / "level2", num_workers=l2.data.num_workers,
                  meta={"trained_on": [ds.checksum for ds in train], "oof": record})
     level2 = ctx.fit(job).model

@@ -5,6 +5,7 @@ import torch
 from methods.nn.config import DataConfig
 from methods.nn.losses import masked_l1
 from methods.ssdd.model import level1_depth, level2_depth
+from methods.ssdd.motion import MotionConfig
 from methods.ssdd.networks import NetConfig, SSDDLSTMUNet, SSDDUNet
 from methods.ssdd.prefilter import PrefilterConfig, prefilter_frames
 
@@ -101,31 +102,43 @@ def test_only_the_absolute_depth_channel_lets_the_correction_depend_on_distance(
         assert shift.abs().max() < 1e-5
 
 
+@pytest.mark.parametrize("motion", [None, MotionConfig(kind="color", previous="output"),
+                                    MotionConfig(kind="depth", previous="level1", warp_state=False)])
 @pytest.mark.parametrize("sequence_centre", [False, True])
-def test_level2_streaming_equals_the_sequence_pass_and_the_sequence_centre_is_the_first_frames(sequence_centre):
+def test_level2_streaming_equals_the_sequence_pass_and_the_sequence_centre_is_the_first_frames(sequence_centre, motion):
     """Inference (``level2_step`` frame by frame, state carried) equals training's pass over the sequence
-    (``level2_depth``) for either code; with ``sequence_centre`` every frame is coded around the first
-    frame's median: shifting a later frame by a constant then changes the net's input (its own code
-    would hide the shift), and the first frame's output is the same as with per-frame centres."""
+    (``level2_depth``) for either code, with or without motion (state and previous depth warped by a
+    given flow); with ``sequence_centre`` every frame is coded around the first frame's median: shifting
+    a later frame by a constant then changes the net's input (its own code would hide the shift), and
+    the first frame's output is the same as with per-frame centres."""
     from methods.ssdd.model import level2_step
 
     torch.manual_seed(0)
-    net = SSDDLSTMUNet(NetConfig(width=4, levels=2, recurrent=[-1, 0]))
+    net = SSDDLSTMUNet(NetConfig(width=4, levels=2, recurrent=[-1, 0]), previous=bool(motion and motion.feeds_previous))
     with torch.no_grad():
         net.unet.head.weight.mul_(100.0)          # a visible correction
     lq, _, _, _ = _batch(T=3)
     l1 = torch.nan_to_num(lq, nan=2.0)
+    flow = None if motion is None else 2.0 * torch.randn(lq.shape[0], 3, 2, 32, 32)
+    kw = {"flow": flow, "motion": motion}
     with torch.no_grad():
-        seq = level2_depth(net, l1, lq, None, DATA, sequence_centre=sequence_centre)
+        seq = level2_depth(net, l1, lq, None, DATA, sequence_centre=sequence_centre, **kw)
         state, steps = None, []
         for t in range(lq.shape[1]):
-            y, state = level2_step(net, l1[:, t], lq[:, t], None, DATA, state, sequence_centre=sequence_centre)
+            y, state = level2_step(net, l1[:, t], lq[:, t], None, DATA, state, sequence_centre=sequence_centre,
+                                   flow=None if flow is None else flow[:, t], motion=motion)
             steps.append(y)
         assert torch.allclose(torch.stack(steps, 1), seq, atol=1e-6)
-        own = level2_depth(net, l1, lq, None, DATA)
+        own = level2_depth(net, l1, lq, None, DATA, **kw)
         assert torch.allclose(seq[:, 0], own[:, 0], atol=1e-6)
         shifted = level2_depth(net, l1 + 0.3 * (torch.arange(3) == 2).view(1, 3, 1, 1, 1),
                                lq + 0.3 * (torch.arange(3) == 2).view(1, 3, 1, 1, 1), None, DATA,
-                               sequence_centre=sequence_centre)
+                               sequence_centre=sequence_centre, **kw)
         moved = (shifted[:, 2] - 0.3 - seq[:, 2]).abs().max().item()
-        assert (moved > 1e-4) if sequence_centre else (moved < 1e-5), moved
+        if sequence_centre:
+            assert moved > 1e-4, moved
+        elif not net.previous:                    # (a previous depth unshifted is a real change of the input)
+            assert moved < 1e-5, moved
+        if motion is not None:                    # the flow is used after the first frame
+            still = level2_depth(net, l1, lq, None, DATA, sequence_centre=sequence_centre, flow=0 * flow, motion=motion)
+            assert torch.equal(still[:, 0], seq[:, 0]) and (still[:, 1:] - seq[:, 1:]).abs().max() > 1e-4

@@ -181,6 +181,7 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     """``ssdd_lstm``: both levels, level 2 on out-of-fold level-1 predictions."""
     cfg: SSDDConfig = ctx.config
     train, validation = ctx.manifest.split("train"), ctx.manifest.split("validation")
+    motion = flows(train + validation, cfg.level2.motion)     # first: a dataset it cannot use fails before training
     pre = prefiltered(train + validation, cfg.level1)
     oof, record, fold_models = out_of_fold(ctx, cfg, pre)
     if ctx.dist.main:
@@ -193,7 +194,6 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
     feeders = fold_models if l2.level1_input == "fold_mean" else [final]   # level 2's level 1 at inference
     val_preds = {ds.checksum: np.mean([predict_level1(m, ds, cfg.level1, pre=pre) for m in feeders], axis=0)
                  for ds in validation}
-    motion = flows(train + validation, l2.motion)
     job = FitJob(name="level 2", model=seeded(lambda: build_level2(l2), l2.optim.seed),
                  loss=level2_loss(l2.data, holes=cfg.loss_on_holes, sequence_centre=l2.centre == "sequence",
                                   motion=l2.motion),

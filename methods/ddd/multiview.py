@@ -30,9 +30,17 @@ person who stands still for most of the session is background.
 
 Only the views' own measurements are read: never ``truth_depth``, and not the HQ reference
 (DDD is self-supervised; the reference only served the calibration).
+
+**Time.** Rows are matched through each view's fitted time shift. Without hardware sync the shift
+between two views 1-1.5 m apart is often unobservable from colour features (few moving features
+match across the baseline) and the alignment writes a placeholder of 0: on the demo's corpus (seed
+2001) a sample's views were then 25-47 ms apart in scene time (truth, diagnosis only), i.e. the
+walking people 25-47 mm apart between views. :func:`rig_groups` warns when it happens. Synchronising
+the views (by truth, a diagnostic) did not make ``tiny`` denoise the people (issue 11, mvcal note).
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,6 +53,8 @@ from align.roi import background_depth, foreground_mask
 from capture.camera import Transform
 from depthbench.fsutil import read_json
 from methods.errors import TrainingError
+
+log = logging.getLogger(__name__)
 
 RIG_JSON = "rig.json"
 BACKGROUND_FRAMES = 40
@@ -87,6 +97,11 @@ def rig_groups(datasets: list[AlignedDataset], *, min_views: int = 2) -> list[Ri
         except (KeyError, TypeError, ValueError) as exc:
             raise TrainingError(f"{root / RIG_JSON}: no usable T_rig_sensor for every view ({exc})") from None
         ref = rig.get("reference")
+        unsynced = [v.meta.get("lq_sensor", "?") for v in views if not v.meta.get("time_model", {}).get("observable", True)]
+        if unsynced:
+            log.warning("%s: the time shift of %s is unobservable (a placeholder): a sample's views may be a frame or "
+                        "more apart in time, and what moves is then not photo-consistent across them",
+                        root, ", ".join(unsynced))
         index = [{_key(v, r, ref): i for i, r in enumerate(v.rows)} for v in views]
         common = sorted(set.intersection(*(set(k) for k in index)))
         groups.append(RigGroup(root, views, T, [[ix[k] for ix in index] for k in common]))

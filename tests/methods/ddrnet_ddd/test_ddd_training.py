@@ -19,7 +19,7 @@ K = Intrinsics(48, 40, 45.0, 45.0, 23.5, 19.5)
 X = (-0.08, 0.0, 0.08)
 
 
-def _rig_session(root, *, seed: int, frames: int = 5):
+def _rig_session(root, *, seed: int, frames: int = 5, observable: bool = True):
     """Three views; returns the per-view dataset folders (``root/view<k>``) and writes ``root/rig.json``."""
     rng = np.random.default_rng(seed)
     v, u = np.mgrid[0:K.height, 0:K.width].astype(np.float64)
@@ -27,7 +27,8 @@ def _rig_session(root, *, seed: int, frames: int = 5):
     writers = {}
     for k, x0 in enumerate(X):
         meta = {"name": f"rig{seed}.view{k}", "lq_sensor": f"view{k}", "hq_sensor": "hq", "lq_intrinsics": K.to_dict(),
-                "time_shift_us": 0, "T_lq_hq": np.eye(4).tolist(), "multiview": True, "rig_reference": "hq"}
+                "time_shift_us": 0, "T_lq_hq": np.eye(4).tolist(), "multiview": True, "rig_reference": "hq",
+                "time_model": {"observable": observable or k == 0}}
         writers[k] = AlignedDatasetWriter(root / f"view{k}", meta)
     for i in range(frames):
         cx = -0.2 + 0.1 * i + 0.05 * seed
@@ -87,3 +88,16 @@ def test_ddd_groups_simultaneous_views_trains_and_beats_raw(tmp_path):
             err[name].append(np.abs(out - f.truth)[ok])
     mae = {k: 1000 * float(np.concatenate(v).mean()) for k, v in err.items()}
     assert mae["ddd"] < mae["raw"], mae
+
+
+def test_rig_groups_warn_when_a_views_time_shift_is_a_placeholder(tmp_path, caplog):
+    quiet = [AlignedDataset(p) for p in _rig_session(tmp_path / "a", seed=0, frames=2)]
+    with caplog.at_level("WARNING", logger="methods.ddd.multiview"):
+        rig_groups(quiet)
+    assert not caplog.records
+    loud = [AlignedDataset(p) for p in _rig_session(tmp_path / "b", seed=0, frames=2, observable=False)]
+    with caplog.at_level("WARNING", logger="methods.ddd.multiview"):
+        groups = rig_groups(loud)
+    assert len(groups[0].rows) == 2
+    msg = " ".join(r.getMessage() for r in caplog.records)
+    assert "view1, view2" in msg and "unobservable" in msg and "view0" not in msg.split("shift of")[1].split("is")[0]

@@ -29,16 +29,18 @@ them as it runs at inference. Training precomputes each frame's flow on whole fr
 (:func:`sequence_flows`, the same :func:`backward_flow` inference calls frame by frame), crops it with
 the other layers and negates its x component on flipped samples.
 
-Measured (issue 10 worklog, session 7; selection session 201, E0's level 1, tiny's level-2 budget of
-240 steps; LSTM - UNet MSE mm^2, all / moving pixels): no motion -0.10 / +0.08 ... see the worklog for
-the table; with ``kind = "color"``: ``previous = "output"`` -0.10 / +0.08, ``"level1"`` -0.09 / +0.05;
-level 2's validation loss stays at level 1's with or without motion. The cause, measured on the same
-session: once the flow carries them, level 1's errors on moving pixels are correlated 0.41 frame to
-frame (0.02 at the same pixel; static pixels 0.46), and 65 % of their squared error comes from errors
-over 20 mm (median 2.7 mm): they move with the content (edges), so temporal fusion has little to
-remove; a fixed motion-compensated recursive filter on level 1's output (``B_t = L1_t + w (r - blur r)``,
-``r`` the flow-warped ``B_{t-1}`` minus ``L1_t``) made the MSE worse at every weight tried. So tiny keeps
-``kind = "none"``; the option stays for longer training (``paper``) and real sequences.
+Measured (issue 10 worklog, session 7; tiny's level-2 budget of 240 steps; LSTM - UNet MSE in mm^2,
+all / moving pixels, per-frame bootstrap). Selection session 201, level 2 retrained on one level 1: no
+motion -0.14 / +0.02; ``kind = "color"`` with ``previous = "output"`` -0.10 / +0.08, ``"level1"`` -0.09 /
++0.05; ``kind = "depth"``, ``"output"`` -0.16 / -0.00; level 2's validation loss stays at level 1's in
+every case. Held-out session 202, three training seeds, moving pixels: colour motion +0.13 / -0.15 /
++0.39 against -0.03 / -1.44 / +0.07 without. The cause, measured on 201: carried by the flow, level 1's
+errors on moving pixels are correlated 0.41 frame to frame (0.02 at the same pixel; static pixels
+0.46), and 86 % of their squared error lies within 2 px of a depth edge: they are silhouette placement
+errors that move with the content, not noise that temporal fusion removes (a fixed motion-compensated
+recursive filter on level 1's output made the MSE worse at every weight tried). So tiny keeps
+``kind = "none"``; the option stays for longer training (``paper``) and real sequences. Its training cost
+at tiny's size is within the run-to-run spread (the flow is one DIS pass per frame, computed once).
 """
 from __future__ import annotations
 

@@ -151,7 +151,7 @@ def test_multiview_rig_in_one_frame(multiview):
     assert "refinement" not in rig  # an HQ reference keeps its feature fits (AlignOptions.rig_refine = "views")
 
 
-def test_multiview_rig_refined_from_static_depth_within_its_sd(multiview):
+def test_multiview_rig_refined_from_static_depth_within_its_sd(multiview, tmp_path):
     """align.rig_refine on the simulator's five-sensor rig (the fits of the fixture): every sensor
     within its stated sd of the simulator's extrinsics, the sds not vacuous, the checks reported."""
     from align.pipeline import refine_multiview_rig
@@ -172,6 +172,18 @@ def test_multiview_rig_refined_from_static_depth_within_its_sd(multiview):
     assert len(ref["pairs"]) == 10 and ref["dof"] >= 24 and ref["consistent"], ref["warnings"]
     assert set(ref["feature_fit_sd_off"]) == {"view0", "view1", "view2", "view3"}
     assert all(T.is_close(res.rig.T_rig_sensor[s]) for s, T in rig.T_rig_sensor_features.items())
+    # what rig.json and the rig report carry
+    from types import SimpleNamespace
+
+    from align.report import write_rig_report
+
+    d = json.loads(json.dumps(rig.to_dict()))
+    assert set(d["T_rig_sensor_std"]) == set(d["T_rig_sensor"]) == set(d["T_rig_sensor_features"])
+    assert d["refinement"]["pairs"][0]["correspondences"] > 500
+    md = write_rig_report(tmp_path, open_session(root), rig, res.views,
+                          {v: SimpleNamespace(kept=1) for v in res.views}).read_text()
+    assert "loop check chi2" in md and "| hq - view0 |" in md and "feature fit off the rig (sd)" in md
+    assert "WARNING" not in md
 
 
 def _board_session(root, spec, T_lq_hq, T_hqd_hqc):

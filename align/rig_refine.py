@@ -54,6 +54,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from align.errors import AlignError
+from align.roi import nan_percentile_axis0
 from capture.camera import Intrinsics, Transform
 
 #: a static pixel is measured in at least this share of the frames
@@ -100,11 +101,8 @@ def static_depth(depths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     D = np.asarray(depths, np.float32)
     if D.ndim != 3 or D.shape[0] < 3:
         raise AlignError(f"static depth needs at least 3 depth frames of one view, got an array of shape {D.shape}")
-    measured = np.isfinite(D)
-    n = measured.sum(axis=0)
-    med = np.full(D.shape[1:], np.nan, np.float32)
+    med, n = nan_percentile_axis0(D, 50.0)
     some = n > 0
-    med[some] = np.nanmedian(D[:, some], axis=0)
     with np.errstate(invalid="ignore"):
         moved = (np.abs(D - med[None]) > np.maximum(MOVE_M, MOVE_REL * med[None] ** 2)).sum(axis=0)
     static = (n >= MIN_MEASURED * D.shape[0]) & (moved <= MAX_MOVED * D.shape[0]) & some

@@ -72,6 +72,10 @@ def register(subparsers) -> None:
                    help="refine the pairwise feature fits of a multi-view rig jointly from every sensor's static depth "
                         "(align/rig_refine.py): where the reference is a view (no HQ sensor), always, or never "
                         "(default: %(default)s)")
+    g.add_argument("--view-sync", choices=("unobservable", "always", "never"), default="unobservable",
+                   help="find a view's time shift against the rig's reference from the depth of what moves, given the "
+                        "calibrated rig (align/view_sync.py): where colour features could not, for every view, or never "
+                        "(default: %(default)s)")
     g = p.add_argument_group("output")
     g.add_argument("--no-truth", action="store_true", help="do not attach the simulator's truth depth (simulated sessions)")
     g.add_argument("--no-report", action="store_true", help="skip report.md and the figures")
@@ -101,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
             report=not args.no_report, progress=not args.no_progress, dejitter=not args.no_dejitter, board=args.board,
             loop=not args.no_loop, loop_correct_depth=not args.keep_lq_depth, reference_edges=args.reference_edges,
             motion=not args.no_motion, motion_min_dt_ms=args.motion_min_dt_ms, motion_model=args.motion_model,
-            rig_refine=args.rig_refine)
+            rig_refine=args.rig_refine, view_sync=args.view_sync)
     except AlignError as exc:
         raise _with_flag(exc)
     sh = r.shift

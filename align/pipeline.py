@@ -24,7 +24,10 @@ dataset under ``OUT/<view>/``. With ``rig_refine`` (default: rigs without an HQ 
 rig only seeds a joint refinement from every sensor's static depth (``align.rig_refine``: ICP of every sensor pair, a
 pose graph, covariances scaled by its loops, the feature fits checked against it); ``rig.json``
 then holds the refined rig with its sds, the feature rig, and the check's warnings, and every
-view's dataset uses the refined transform.
+view's dataset uses the refined transform. A view whose time shift colour features could not
+determine (``view_sync``, default; or every view) then gets it from the depth of what moves, given
+that rig (``align.view_sync``): its frames are paired at that shift and ``rig.json`` holds
+``time_sync``.
 """
 from __future__ import annotations
 
@@ -33,7 +36,7 @@ import logging
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import cv2
@@ -63,6 +66,8 @@ log = logging.getLogger(__name__)
 
 #: when a multi-view rig is refined from static depth (:class:`AlignOptions` ``rig_refine``)
 RIG_REFINE = ("views", "always", "never")
+#: which views of a multi-view rig get their time shift from depth (:class:`AlignOptions` ``view_sync``)
+VIEW_SYNC = ("unobservable", "always", "never")
 
 
 @dataclass(frozen=True)
@@ -89,6 +94,11 @@ class AlignOptions:
     ``always``, or ``never`` (the pairwise feature fits as they are). With an HQ reference the feature
     fits were within 6 mm of the simulator's extrinsics and the refinement 1.7-7.2 mm (within its sd),
     so they are kept there.
+    view_sync: multi-view rigs only: the time shift of a view against the rig's reference from the
+    depth disagreement of what moves, given the calibrated rig (:mod:`align.view_sync`):
+    ``unobservable`` (default: where colour features could not determine it, instead of the
+    placeholder), ``always`` (every view), ``never``. Multi-view fits then go on past an unobservable
+    feature shift; ``on_unobservable`` applies to what depth could not determine either.
     """
 
     shift_range_ms: float = DEFAULT_RANGE_US / 1000
@@ -119,6 +129,7 @@ class AlignOptions:
     motion_min_dt_ms: float = 1.0
     motion_model: str = "edges"
     rig_refine: str = "views"
+    view_sync: str = "unobservable"
 
     def check(self) -> None:
         if self.board is not None:
@@ -151,6 +162,9 @@ class AlignOptions:
         if self.rig_refine not in RIG_REFINE:
             raise OptionError(f"rig refinement must be one of {', '.join(RIG_REFINE)}, got {self.rig_refine!r}",
                               option="rig_refine")
+        if self.view_sync not in VIEW_SYNC:
+            raise OptionError(f"view sync must be one of {', '.join(VIEW_SYNC)}, got {self.view_sync!r}",
+                              option="view_sync")
         if self.on_unobservable not in ("error", "flag"):
             raise OptionError(f"on_unobservable must be 'error' or 'flag', got {self.on_unobservable!r}",
                               option="on_unobservable")
@@ -812,6 +826,58 @@ def refine_multiview_rig(sess: Session, fits: dict[str, PairFit], rig: RigCalibr
                           T_rig_sensor_features=dict(rig.T_rig_sensor))
 
 
+def sync_multiview_views(sess: Session, fits: dict[str, PairFit], rig: RigCalibration, opts: AlignOptions) -> dict:
+    """Each view's time shift against the rig's reference from depth (:mod:`align.view_sync`), for
+    the views ``opts.view_sync`` selects; an observable result replaces the fit's shift (``kind``
+    ``depth`` in aligned.json), and the reference view's own pair (fitted against another view)
+    takes minus that view's. Returns ``{view: ViewSync}``. Never reads ``truth/``."""
+    from align.view_sync import DepthFrames, frames_to_read, sync_view
+
+    range_us = int(opts.shift_range_ms * 1000)
+    cache: dict[tuple[str, int], np.ndarray] = {}
+
+    def frames(sensor: str, stream: str, numbers: np.ndarray) -> np.ndarray:
+        for f in numbers:
+            if (sensor, int(f)) not in cache:
+                cache[(sensor, int(f))] = sess.read_depth(sensor, int(f), stream=stream)
+        return np.stack([cache[(sensor, int(f))] for f in numbers])
+
+    syncs = {}
+    todo = [v for v, pf in fits.items() if pf.setup.hq == rig.reference
+            and (opts.view_sync == "always" or not pf.shift.observable)]
+    for v in tqdm(todo, desc="view sync", unit="view", disable=not opts.progress, file=sys.stderr, leave=False):
+        st = fits[v].setup
+        ir, iv = frames_to_read(st.t_hq, st.t_lq, range_us=range_us)
+        if ir.size == 0:
+            log.warning("%s: %s overlaps the reference too little in time to find its shift from depth", sess.name, v)
+            continue
+        ref = DepthFrames(frames(st.hq, st.hq_depth, st.f_hq[ir]), st.t_hq[ir], st.K_hq)
+        view = DepthFrames(frames(st.lq, st.lq_depth, st.f_lq[iv]), st.t_lq[iv], st.K_lq)
+        syncs[v] = y = sync_view(ref, view, rig.T_dst_src(rig.reference, v), range_us=range_us)
+        if not y.observable:
+            log.warning("%s: the time shift of %s is not observable from depth either: %s", sess.name, v, y.reason)
+            continue
+        fits[v].shift = _depth_shift(fits[v].shift, y.time_shift_us, y.std_us)
+    for v, pf in fits.items():   # the reference view, fitted against another view
+        other = pf.setup.hq
+        if other != rig.reference and other in syncs and syncs[other].observable and \
+                (opts.view_sync == "always" or not pf.shift.observable):
+            pf.shift = _depth_shift(pf.shift, -syncs[other].time_shift_us, syncs[other].std_us)
+    if opts.on_unobservable == "error":
+        left = [v for v, pf in fits.items() if not pf.shift.observable]
+        if left:
+            raise UnobservableError(f"{sess.root}: the time shift of {', '.join(left)} is unobservable from colour "
+                                    "features and from depth", estimate=fits[left[0]].shift)
+    return syncs
+
+
+def _depth_shift(shift: ShiftEstimate, delta_us: float, std_us: float) -> ShiftEstimate:
+    was = f"; colour features: {shift.reason}" if shift.reason else ""
+    return replace(shift, time_shift_us=float(delta_us), std_us=float(std_us), observable=True, model="depth",
+                   drift_ppm=0.0, reason=f"from the depth of what moves, given the calibrated rig (align.view_sync){was}",
+                   segments=[])
+
+
 def _only(sess: Session, role: str) -> str:
     ids = sess.sensors_with_role(role)
     if not ids:
@@ -826,15 +892,18 @@ def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOpti
     reference = hqs[0] if hqs else views[0]
     fits: dict[str, PairFit] = {}
     outputs: dict[str, PairOutput] = {}
+    # an unobservable feature shift is flagged here and then found from depth (AlignOptions.view_sync)
+    fit_opts = replace(opts, on_unobservable="flag") if opts.view_sync != "never" else opts
     with staged_directory(out, force=force, what="aligned multi-view dataset") as stage:
         for v in views:
             src = reference if v != reference else views[1]
             setup = pair_setup(sess, lq=v, hq=src, dejitter=opts.dejitter)
-            fits[v] = fit_pair(setup, opts)
+            fits[v] = fit_pair(setup, fit_opts)
         T_ref = {v: fits[v].T_lq_hq.inverse() for v in views if v != reference}
         rig = compose_rig(reference, T_ref)
         if opts.rig_refine == "always" or (opts.rig_refine == "views" and not hqs):
             rig = refine_multiview_rig(sess, fits, rig, progress=opts.progress)
+        syncs = sync_multiview_views(sess, fits, rig, opts) if opts.view_sync != "never" else {}
         if reference in fits:  # reference view fitted against another view: a loop check
             other = views[1]
             rig.loop_errors.append((reference, other, *fits[reference].T_lq_hq.error_to(rig.T_dst_src(reference, other))))
@@ -844,7 +913,8 @@ def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOpti
                 pf.rig_std = rig.std[v if v != reference else pf.setup.hq]
         atomic_write_json(stage / "rig.json", {"format": "depthbench.rig", "session": sess.name, **rig.to_dict(),
                                               "time_shift_us": {v: int(round(f.shift.time_shift_us)) for v, f in fits.items()},
-                                              "time_source": {v: f.setup.hq for v, f in fits.items()}})
+                                              "time_source": {v: f.setup.hq for v, f in fits.items()},
+                                              **({"time_sync": {v: y.to_dict() for v, y in syncs.items()}} if syncs else {})})
         for v in views:
             setup = fits[v].setup
             truth = TruthSource(sess.root, v) if opts.attach_truth and TruthSource.available(sess.root) else None

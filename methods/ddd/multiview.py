@@ -31,12 +31,16 @@ person who stands still for most of the session is background.
 Only the views' own measurements are read: never ``truth_depth``, and not the HQ reference
 (DDD is self-supervised; the reference only served the calibration).
 
-**Time.** Rows are matched through each view's fitted time shift. Without hardware sync the shift
+**Time.** Rows are matched through each view's fitted time shift: a view's row is keyed by the
+reference frame the alignment paired it with, at that shift (eq. 28), so one sample's views are
+within half a frame period of one instant when the shifts are right. Without hardware sync the shift
 between two views 1-1.5 m apart is often unobservable from colour features (few moving features
-match across the baseline) and the alignment writes a placeholder of 0: on the demo's corpus (seed
-2001) a sample's views were then 25-47 ms apart in scene time (truth, diagnosis only), i.e. the
-walking people 25-47 mm apart between views. :func:`rig_groups` warns when it happens. Synchronising
-the views (by truth, a diagnostic) did not make ``tiny`` denoise the people (issue 11, mvcal note).
+match across the baseline); the multi-view alignment then finds it from the depth of what moves,
+given the calibrated rig (:mod:`align.view_sync`; ``time_model.kind = "depth"`` in aligned.json).
+With the old placeholder of 0 a sample's views on the demo's corpus (seed 2001) were 25-47 ms apart
+in scene time (truth, diagnosis only), i.e. the walking people 25-47 mm apart between views, and DDD
+did not beat raw on the people (issue 11, session 7). :func:`rig_groups` still warns when a view's
+shift is a placeholder (neither colour nor depth determined it).
 """
 from __future__ import annotations
 

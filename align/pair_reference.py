@@ -9,7 +9,8 @@ An HQ depth frame becomes the LQ frame's reference in three steps, always in thi
 2. when the LQ frame is exposed apart from its HQ frame, the reference carried to the LQ instant
    from the two HQ frames around it (:mod:`align.motion`, or by scene flow along the HQ colour
    images' optical flow, :mod:`align.motion_flow`);
-3. the edge rule's mask (far side of reference edges) on the result.
+3. the edge rule's mask (far side of reference edges) on the result; the ``-fg`` rules mask there only
+   what the ROI would score, given the ROI's background model.
 
 The aligned dataset's references (:func:`align.pipeline.write_pair_dataset`) and every error
 reported against truth for them (the loop's end-to-end table, :mod:`align.loop.report`) come from
@@ -79,11 +80,16 @@ class PairReferences:
         hq_color: for ``motion_model="flow"``: ``(read_color, K_hq_color, T_hqcolor_hqdepth)``,
             ``read_color(i)`` -> HQ colour image of depth frame ``i`` (RGB uint8) or ``None``; without
             it the edges carry every pair.
+        background: the ROI's background model ``(H, W)`` float32 metres on the LQ image
+            (:func:`align.roi.background_depth`), for the rules that mask only what the ROI scores
+            (``-fg``, :attr:`align.reference_edges.EdgeRule.scored_only`); ``None``: they mask as the others.
     """
 
     def __init__(self, read_hq: Callable[[int], np.ndarray], *, K_hq, K_lq, T_lq_hq, t_hq_us: np.ndarray,
-                 options: ReferenceOptions | None = None, hq_color: tuple | None = None) -> None:
+                 options: ReferenceOptions | None = None, hq_color: tuple | None = None,
+                 background: np.ndarray | None = None) -> None:
         self.options = options or ReferenceOptions()
+        self.background = background
         if self.options.motion_model not in MOTION_MODELS:
             raise OptionError(f"motion model must be one of {', '.join(MOTION_MODELS)}, got {self.options.motion_model!r}",
                               option="motion_model")
@@ -101,7 +107,7 @@ class PairReferences:
                                       min_dt_us=1000 * self.options.motion_min_dt_ms, moved=moved)
 
     def _warp(self, i: int) -> np.ndarray:
-        depth, mask = self.rule.warp(self._warper, self._read_hq(i))
+        depth, mask = self.rule.warp(self._warper, self._read_hq(i), background=self.background)
         if mask is not None:
             if len(self._frame_masks) >= 4:
                 self._frame_masks.pop(next(iter(self._frame_masks)))
@@ -110,7 +116,7 @@ class PairReferences:
 
     def _warp_moved(self, depth: np.ndarray, motion) -> np.ndarray:
         """An HQ frame warped with its points moved by scene flow, as the rule warps (its mask kept)."""
-        out, self._moved_mask = self.rule.warp(self._warper, depth, motion=motion)
+        out, self._moved_mask = self.rule.warp(self._warper, depth, motion=motion, background=self.background)
         return out
 
     def __call__(self, i: int, dt_us: float) -> PairReference:
@@ -118,7 +124,7 @@ class PairReferences:
         ``t_lq - (t_hq + shift)``)."""
         self._moved_mask = None
         ref, pm = self.motion(int(i), float(dt_us))
-        depth, mask = self.rule.apply(ref)
+        depth, mask = self.rule.apply(ref, background=self.background)
         at_warp = self._moved_mask if pm.model == "scene flow" else self._frame_masks.get(int(i))
         if at_warp is not None:  # the rule's mask at the warp, where the pair's reference has no depth
             mask = mask | (at_warp & ~np.isfinite(depth))

@@ -591,6 +591,8 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     if kept.size == 0:
         raise AlignError(f"{sess.root}: every frame pair was dropped ({table.counts()}); nothing to write")
     background = background_depth(np.stack(refs)) if refs else None
+    if rule.scored_only:  # the rule masks only what the ROI scores: the references again, knowing its background
+        reference = pair_references(setup, T_lq_hq=pf.T_lq_hq, options=reference_options(opts), background=background)
     shift_all = pf.time_shift_at(setup.t_hq)
     meta = _metadata(setup, pf, table, opts, meta_extra)
     writer = AlignedDatasetWriter(root, meta, force=force, depth_unit_m=1e-4)
@@ -642,11 +644,11 @@ def reference_options(opts: AlignOptions) -> ReferenceOptions:
                             motion_min_dt_ms=opts.motion_min_dt_ms, motion_model=opts.motion_model)
 
 
-def pair_references(setup: PairSetup, *, T_lq_hq: Transform, K_lq=None,
-                    options: ReferenceOptions | None = None) -> PairReferences:
+def pair_references(setup: PairSetup, *, T_lq_hq: Transform, K_lq=None, options: ReferenceOptions | None = None,
+                    background: np.ndarray | None = None) -> PairReferences:
     """The pairs' references as the aligned dataset has them (:class:`align.pair_reference.PairReferences`:
     the warp, carried to the LQ instant, the edge rule), HQ frames read from the session. ``K_lq``:
-    ``None``: ``setup.K_lq``."""
+    ``None``: ``setup.K_lq``; ``background``: the ROI's, for the rules that mask only what it scores."""
     sess = setup.session
 
     def read_hq(i: int) -> np.ndarray:
@@ -657,7 +659,7 @@ def pair_references(setup: PairSetup, *, T_lq_hq: Transform, K_lq=None,
         return None if c < 0 else sess.read_color(setup.hq, int(setup.f_hq_c[c]), stream=setup.hq_color)
 
     return PairReferences(read_hq, K_hq=setup.K_hq, K_lq=setup.K_lq if K_lq is None else K_lq, T_lq_hq=T_lq_hq,
-                          t_hq_us=setup.t_hq, options=options,
+                          t_hq_us=setup.t_hq, options=options, background=background,
                           hq_color=(read_hq_color, setup.K_hq_color, setup.T_hqdepth_hqcolor.inverse()))
 
 

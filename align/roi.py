@@ -51,6 +51,15 @@ def nan_percentile_axis0(stack: np.ndarray, percentile: float) -> tuple[np.ndarr
     return out, count
 
 
+def in_front(depth: np.ndarray, background: np.ndarray, *, margin_m: float = 0.15, margin_rel: float = 0.05) -> np.ndarray:
+    """Pixels ``(H, W)`` bool whose depth (metres, NaN = none) lies at least ``max(margin_m, margin_rel *
+    background)`` in front of the background: :func:`foreground_mask`'s test, before its clean-up."""
+    d = np.asarray(depth, np.float32)
+    bg = np.asarray(background, np.float32)
+    with np.errstate(invalid="ignore"):
+        return (d > 0) & (d < bg - np.maximum(margin_m, margin_rel * bg))
+
+
 def foreground_mask(depth: np.ndarray, background: np.ndarray, *, margin_m: float = 0.15, margin_rel: float = 0.05,
                     min_area_px: int = 100, open_px: int = 1) -> np.ndarray:
     """M_r: ``(H, W)`` bool, pixels at least ``max(margin_m, margin_rel * background)`` in front of the background.
@@ -61,9 +70,7 @@ def foreground_mask(depth: np.ndarray, background: np.ndarray, *, margin_m: floa
     bg = np.asarray(background, np.float32)
     if d.shape != bg.shape:
         raise ShapeError(f"depth {d.shape} and background {bg.shape} differ in shape")
-    with np.errstate(invalid="ignore"):
-        fg = (d > 0) & (d < bg - np.maximum(margin_m, margin_rel * bg))
-    m = fg.astype(np.uint8)
+    m = in_front(d, bg, margin_m=margin_m, margin_rel=margin_rel).astype(np.uint8)
     if open_px > 0:
         k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * open_px + 1, 2 * open_px + 1))
         m = cv2.morphologyEx(m, cv2.MORPH_OPEN, k)

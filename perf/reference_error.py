@@ -14,7 +14,8 @@ is left), and compared with the LQ truth depth on the region of interest compute
   hole of the reference, within 3 px of a depth edge of the truth, of the reference;
 * the same for each edge rule of :mod:`align.reference_edges` (``midpoint``: the plain warp;
   ``strict``: the aligned dataset's default; ``mixed``: also the HQ's time-of-flight mixed samples),
-  with the share of ROI pixels the rule masked (the plain warp has depth there, the reference none)
+  with the share of ROI pixels the rule masked (the plain warp has depth there, the reference none;
+  ``strict-fg``/``mixed-fg`` mask only where the reference is in front of the background)
   and the share of ROI pixels without a reference at all (holes of the HQ sensor, shadows, masks);
 * the mean over frames of each frame's MAE and RMSE (as the leaderboard's "HQ sensor" column), their
   ratio (issue 12 asks RMSE within 2x MAE), and the share of the squared error that pixels more than
@@ -65,20 +66,20 @@ def main() -> None:
         pairs.append((s - t_hq[i], sess.read_depth("hq", int(f_hq[i])), tr.depth("lq", int(f_lq[j])),
                       sess.read_depth("lq", int(f_lq[j]))))
     print(f"{len(pairs)} pairs, HQ-LQ time apart (ms): {', '.join(f'{dt / 1000:+.2f}' for dt, *_ in pairs)}")
-    bg = None
+    plain = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), tr.T_lq_hq, edge_reach=0.5)
+    # one background model (from the plain warp) for every rule
+    bg = background_depth(np.stack([np.where(np.isfinite(r), r, lq) for r, lq in ((plain(hq), lq) for _, hq, _, lq in pairs)]))
     for name in sorted(RULES, key=lambda n: n != "midpoint"):
         rule = EdgeRule.named(name)
         W = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), tr.T_lq_hq, edge_reach=rule.edge_reach)
-        rows = [(_reference(rule, W, hq), truth, lq) for _, hq, truth, lq in pairs]
-        if bg is None:  # one background model (from the plain warp) for every rule
-            bg = background_depth(np.stack([np.where(np.isfinite(r), r, lq) for (r, _), _, lq in rows]))
-        _report(name, rows, bg)
+        _report(name, [(_reference(rule, W, hq, bg), truth, lq) for _, hq, truth, lq in pairs], bg)
 
 
-def _reference(rule: EdgeRule, warper, hq):
-    """The rule's reference and every pixel it masked (at the warp and after it), as ``align`` builds them."""
-    ref, at_warp = rule.warp(warper, hq)
-    ref, mask = rule.apply(ref)
+def _reference(rule: EdgeRule, warper, hq, background=None):
+    """The rule's reference and every pixel it masked (at the warp and after it), as ``align`` builds them
+    (``background``: the ROI's, for the rules that mask only what it scores)."""
+    ref, at_warp = rule.warp(warper, hq, background=background)
+    ref, mask = rule.apply(ref, background=background)
     return ref, mask if at_warp is None else mask | at_warp
 
 

@@ -82,3 +82,43 @@ def test_strict_rule_removes_most_large_errors_of_the_midpoint_warp():
     assert big_mid > 0.001 * n  # the midpoint warp's edge errors exist on this scene
     assert big_strict < 0.3 * big_mid
     assert masked < 0.05 * n  # what the mask costs stays a thin band
+
+
+@pytest.mark.parametrize("base", ["strict", "mixed"])
+def test_fg_rules_mask_only_what_the_roi_scores_and_keep_its_errors(base):
+    """``strict-fg``/``mixed-fg`` against their base rule on an analytic scene (a slab in front of a ball, both
+    in front of the room; HQ with mixed pixels and noise; the LQ depth fattened at edges, as stereo does):
+    the band is the base's where the reference is in front of the background and nothing elsewhere, so the
+    ROI's errors against the ray-cast truth are the base's while far fewer ROI pixels are masked."""
+    from scipy.ndimage import minimum_filter
+
+    from align.pair_reference import PairReferences, ReferenceOptions
+    from align.roi import foreground_mask, in_front
+    from tests.align.scene import Sphere
+
+    Kh, Kl, T_lq_hq, T_hq_world, T_lq_world = _rig(scale=0.5, distortion=False)
+    acc = {}
+    for s, person in enumerate(((0.0, 0.2, 2.2), (-0.4, 0.1, 1.8), (0.5, 0.3, 2.6))):
+        shapes = room(person_at=person)[:4] + [Sphere((person[0] + 0.3, person[1] - 0.2, person[2] + 0.6), 0.25)]
+        rng = np.random.default_rng(s)
+        dh = _mixed_pixels(cast(Kh, T_hq_world, shapes)[0], rng)
+        dh = (dh * (1 + 0.001 * rng.standard_normal(dh.shape))).astype(np.float32)
+        dl = cast(Kl, T_lq_world, shapes)[0].astype(np.float32)
+        bg = cast(Kl, T_lq_world, shapes[:3])[0].astype(np.float32)
+        lq = minimum_filter(np.where(np.isfinite(dl), dl, 99), 5).astype(np.float32)  # foreground fattened by 2 px
+        for name in (base, f"{base}-fg"):
+            r = PairReferences(lambda i: dh, K_hq=Kh, K_lq=Kl, T_lq_hq=T_lq_hq, t_hq_us=np.array([0]), background=bg,
+                               options=ReferenceOptions(reference_edges=name, motion=False))(0, 0.0)
+            roi = foreground_mask(np.where(np.isfinite(r.depth), r.depth, lq), bg) & np.isfinite(dl)
+            e = np.abs(r.depth - dl)[roi & np.isfinite(r.depth)]
+            a = acc.setdefault(name, np.zeros(4))
+            a += (int((e > 0.3).sum()), (e ** 2).sum(), e.size, int((r.edge_mask & roi).sum()))
+            if name == "strict-fg":  # the band where the reference is in front of the background, by formula
+                plain = DepthWarper(Kh, Kl, T_lq_hq, edge_reach=0.0)(dh)
+                band = occluded_side(plain, radius_px=3) & in_front(plain, bg)
+                assert np.array_equal(r.depth, np.where(band, np.float32(np.nan), plain), equal_nan=True)
+                assert np.array_equal(r.edge_mask, band)
+    full, fg = acc[base], acc[f"{base}-fg"]
+    assert fg[0] <= full[0]  # no whole-jump error the base rule does not have
+    assert np.sqrt(fg[1] / fg[2]) < 1.1 * np.sqrt(full[1] / full[2])
+    assert fg[3] < 0.2 * full[3]  # far fewer ROI pixels masked (the base's band is mostly background the LQ fattens)

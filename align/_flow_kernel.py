@@ -1,10 +1,11 @@
 """The compiled passes of :mod:`align.motion_flow` (imported on first use: numba takes a while to import).
 
-:func:`scene_motion` is steps 1-3 of :class:`align.motion_flow.SceneFlow` in one pass over the HQ depth
-samples (the numpy version made ~15 full-image temporaries: it cost three plain warps, and issue 12 asks
-the corrected warp for at least half the plain warp's throughput); :func:`fill_untrusted` is the fill of
-untrusted samples by the mean motion of the trusted ones around them, by running box sums (two passes).
-Motions are written
+:func:`scene_shift` and :func:`scene_motion` are steps 1-2 and 3 of :class:`align.motion_flow.SceneFlow`,
+each one pass over the HQ depth samples (the numpy version made ~15 full-image temporaries: it cost three
+plain warps, and issue 12 asks the corrected warp for at least half the plain warp's throughput); between
+them :func:`flow_gain` chooses the factor on the optical flow. :func:`fill_untrusted` is the fill of
+untrusted samples by the mean motion of the trusted ones of their own surface around them;
+:func:`expand_blocks` the motion of every sample from the block samples'. Motions are written
 planar, ``(C, Hs, Ws)``: rotated by ``R`` (``C = 3``; ``R = I``: the source frame), or with the
 source-frame depth change as a fourth channel (``C = 4``): :class:`align.warp.CropMotion`'s layout,
 so the warp takes them as they are (no image of motions, no rotation of one).
@@ -32,12 +33,12 @@ def _lerp(img, x0, y0, fx, fy, c):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def scene_motion(d, dx, flow, cams, R, grid, scale, max_jump, out, trusted, shift, ubox):  # pragma: no cover - compiled
-    """Steps 1-3 of :class:`align.motion_flow.SceneFlow` for the samples ``(r0 + i stride, c0 + j stride)``
-    of HQ frame ``o``, ``grid = (r0, c0, stride)``.
+def scene_shift(d, flow, cams, grid, shift, has):  # pragma: no cover - compiled
+    """Steps 1-2 of :class:`align.motion_flow.SceneFlow` for the samples ``(r0 + i stride, c0 + j stride)``
+    of HQ frame ``o``, ``grid = (r0, c0, stride)``: each one's optical flow in depth pixels.
 
     Args:
-        d, dx: depth of frames ``o`` and ``x``, ``(H, W)`` float32 metres (NaN or <= 0 = none).
+        d: depth of frame ``o``, ``(H, W)`` float32 metres (NaN or <= 0 = none).
         flow: the optical flow on the reduced colour image, ``(h, w, 2)`` float32 pixels.
         cams: ``(rays, Rr, t, kc, to_depth, kd, colour_uv)``: the depth camera's undistorted rays
             ``(H, W, 2)`` (x, y at z = 1); ``Rr`` ``(3, H, W)`` the rays rotated into the colour camera and
@@ -46,27 +47,19 @@ def scene_motion(d, dx, flow, cams, R, grid, scale, max_jump, out, trusted, shif
             depth camera or ``(0,)`` (lens distortion: the ray through ``q`` interpolated in ``rays``);
             ``colour_uv`` ``(2, H, W)`` positions on the flow image computed outside (a colour camera
             with lens distortion) or ``(2, 0, 0)`` (pinhole: computed here). All float32.
-        R: ``(3, 3)`` float32, the rotation the motion is written in (the identity: ``o``'s depth camera).
-        scale: float32, the motion written is this fraction of the motion to frame ``x``.
-        max_jump: float32 metres, the largest depth change of a trusted target.
-    Writes ``out`` ``(C, Hs, Ws)`` float32 (``R m``, and ``m_z`` when ``C = 4``; 0 where untrusted),
-    ``trusted`` ``(Hs, Ws)`` bool, ``shift`` ``(Hs, Ws, 2)`` float32 the flow in depth pixels (``q - p``)
-    and ``ubox`` ``(4,)`` int64, the rows ``[0, 1)`` and columns ``[2, 3)`` of the untrusted samples with
-    depth (empty: ``ubox[0] >= ubox[1]``).
+    Writes ``shift`` ``(Hs, Ws, 2)`` float32, the flow in depth pixels (``q - p``; 0 where none), and ``has``
+    ``(Hs, Ws)`` bool: the sample has depth and its colour position lies within the flow image.
     """
     rays, Rr, t, kc, to_depth, kd, colour_uv = cams
-    H, W = d.shape
     r0, c0, stride = grid
     h, w = flow.shape[0], flow.shape[1]
     half = np.float32(0.5)
-    out[:] = 0
-    shift[:] = 0
-    trusted[:] = False
-    ubox[0], ubox[1], ubox[2], ubox[3] = trusted.shape[0], 0, trusted.shape[1], 0
-    for i in range(trusted.shape[0]):
-        for j in range(trusted.shape[1]):
+    for i in range(has.shape[0]):
+        for j in range(has.shape[1]):
             y, x = r0 + i * stride, c0 + j * stride
             z = d[y, x]
+            shift[i, j, 0] = shift[i, j, 1] = 0
+            has[i, j] = False
             if not z > 0:
                 continue
             if colour_uv.shape[1] == 0:
@@ -78,19 +71,92 @@ def scene_motion(d, dx, flow, cams, R, grid, scale, max_jump, out, trusted, shif
             else:
                 u, v = colour_uv[0, y, x], colour_uv[1, y, x]
             x0, y0, fx, fy = _cell(u, v, h, w)
-            ok = x0 >= 0  # inside the colour image
-            if ok:
+            if x0 >= 0:  # inside the colour image
                 shift[i, j, 0] = _lerp(flow, x0, y0, fx, fy, 0) * to_depth[0]
                 shift[i, j, 1] = _lerp(flow, x0, y0, fx, fy, 1) * to_depth[1]
-                qx, qy = x + shift[i, j, 0], y + shift[i, j, 1]
-                ix, iy = np.int32(np.floor(qx + half)), np.int32(np.floor(qy + half))
-                ok = 0 <= ix < W and 0 <= iy < H and abs(dx[min(max(iy, 0), H - 1), min(max(ix, 0), W - 1)] - z) <= max_jump
-            if not ok:
-                ubox[0], ubox[1] = min(ubox[0], i), max(ubox[1], i + 1)
-                ubox[2], ubox[3] = min(ubox[2], j), max(ubox[3], j + 1)
+                has[i, j] = True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _lands(d, dx, y, x, sx, sy, max_jump):  # pragma: no cover - compiled
+    """``(ix, iy)`` the pixel that ``(x, y)`` moved by ``(sx, sy)`` falls in, ``ix = -1`` when it is outside
+    the image or its depth in ``dx`` is not within ``max_jump`` of ``d[y, x]`` (another surface)."""
+    H, W = d.shape
+    half = np.float32(0.5)
+    ix, iy = np.int32(np.floor(x + sx + half)), np.int32(np.floor(y + sy + half))
+    if 0 <= ix < W and 0 <= iy < H and abs(dx[iy, ix] - d[y, x]) <= max_jump:
+        return ix, iy
+    return np.int32(-1), iy
+
+
+@numba.njit(cache=True, nogil=True)
+def flow_gain(d, dx, shift, has, grid, gains, max_jump, min_px):  # pragma: no cover - compiled
+    """The index into ``gains`` ``(G,)`` float32 of the factor on the samples' flow ``shift`` (:func:`scene_shift`)
+    that carries the most of the moving samples (flow over ``min_px``) onto their own surface in ``dx``
+    (depth within ``max_jump``): the count of those that land on it minus those that do not, the first
+    of equal counts."""
+    r0, c0, stride = grid
+    n = 0
+    moving = np.empty((has.size, 2), np.int64)
+    for i in range(has.shape[0]):
+        for j in range(has.shape[1]):
+            sx, sy = shift[i, j, 0], shift[i, j, 1]
+            if has[i, j] and sx * sx + sy * sy > min_px * min_px:
+                moving[n, 0], moving[n, 1] = i, j
+                n += 1
+    best, best_n = 0, -(1 << 62)
+    for g in range(gains.size):
+        count = 0
+        for k in range(n):
+            i, j = moving[k, 0], moving[k, 1]
+            ix, _ = _lands(d, dx, r0 + i * stride, c0 + j * stride, gains[g] * shift[i, j, 0], gains[g] * shift[i, j, 1],
+                           max_jump)
+            count += 1 if ix >= 0 else -1
+        if count > best_n:
+            best, best_n = g, count
+    return best
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def scene_motion(d, dx, shift, has, cams, R, grid, scale, max_jump, still_px, still_dz, out, trusted, still):  # pragma: no cover - compiled
+    """Step 3 of :class:`align.motion_flow.SceneFlow` for :func:`scene_shift`'s samples: each one carried by
+    its ``shift`` to ``q`` in frame ``x``, trusted where ``dx`` there is within ``max_jump`` of its depth, its
+    motion ``P_x - P``.
+
+    Args:
+        d, dx: depth of frames ``o`` and ``x``, ``(H, W)`` float32 metres (NaN or <= 0 = none).
+        shift, has: :func:`scene_shift`'s (the flow in depth pixels, times the flow's gain).
+        cams, grid: as :func:`scene_shift`'s.
+        R: ``(3, 3)`` float32, the rotation the motion is written in (the identity: ``o``'s depth camera).
+        scale: float32, the motion written is this fraction of the motion to frame ``x``.
+        max_jump: float32 metres, the largest depth change of a trusted target.
+        still_px, still_dz: float32 depth pixels and metres: a trusted sample whose flow is no longer and
+            whose target's depth is within ``still_dz`` of its own stands still (``still``, motion 0: what is
+            left is the two frames' depth noise, and moving it by ``scale`` of under a pixel changes nothing).
+    Writes ``out`` ``(C, Hs, Ws)`` float32 (``R m``, and ``m_z`` when ``C = 4``; 0 where untrusted or still),
+    ``trusted`` and ``still`` ``(Hs, Ws)`` bool.
+    """
+    rays, kd = cams[0], cams[5]
+    H, W = d.shape
+    r0, c0, stride = grid
+    for i in range(trusted.shape[0]):
+        for j in range(trusted.shape[1]):
+            for c in range(out.shape[0]):
+                out[c, i, j] = 0
+            trusted[i, j] = still[i, j] = False
+            if not has[i, j]:
                 continue
-            zq = dx[iy, ix]
-            qx, qy = min(max(qx, np.float32(0)), np.float32(W - 1)), min(max(qy, np.float32(0)), np.float32(H - 1))
+            y, x = r0 + i * stride, c0 + j * stride
+            ix, iy = _lands(d, dx, y, x, shift[i, j, 0], shift[i, j, 1], max_jump)
+            if ix < 0:
+                continue
+            z, zq = d[y, x], dx[iy, ix]
+            if (shift[i, j, 0] * shift[i, j, 0] + shift[i, j, 1] * shift[i, j, 1] <= still_px * still_px
+                    and abs(zq - z) <= still_dz):  # stands still
+                trusted[i, j] = still[i, j] = True
+                continue
+            qx = min(max(x + shift[i, j, 0], np.float32(0)), np.float32(W - 1))
+            qy = min(max(y + shift[i, j, 1], np.float32(0)), np.float32(H - 1))
             if kd.size:  # the ray through q (within the image)
                 rxq, ryq = (qx - kd[2]) / kd[0], (qy - kd[3]) / kd[1]
             else:  # interpolated (lens distortion)
@@ -105,73 +171,95 @@ def scene_motion(d, dx, flow, cams, R, grid, scale, max_jump, out, trusted, shif
 
 
 @numba.njit(cache=True, nogil=True)
-def fill_untrusted(out, trusted, radius, box, depth_only, d, grid):  # pragma: no cover - compiled
-    """In place: each untrusted sample of ``out`` ``(C, Hs, Ws)`` within ``box`` (rows ``[box[0], box[1])``,
-    columns ``[box[2], box[3])``; with ``depth_only``, only those whose sample of ``d`` ``(H, W)`` has
-    depth, ``grid = (r0, c0, stride)`` as :func:`scene_motion`'s) takes the mean of the trusted samples
-    within ``radius`` (a ``(2 radius + 1)`` box), 0 where there are none. Running sums over the box grown
-    by ``radius``, rows then columns: the cost does not grow with ``radius``."""
+def block_depths(d, grid, shape):  # pragma: no cover - compiled
+    """The depths ``(Hs, Ws)`` float32 of the samples ``(r0 + i stride, c0 + j stride)`` of ``d`` (contiguous)."""
+    r0, c0, stride = grid
+    dl = np.empty(shape, np.float32)
+    for i in range(shape[0]):
+        for j in range(shape[1]):
+            dl[i, j] = d[r0 + i * stride, c0 + j * stride]
+    return dl
+
+
+@numba.njit(cache=True, nogil=True)
+def fill_offsets(radius):  # pragma: no cover - compiled
+    """The window :func:`fill_untrusted` looks in, ``(K, 2)`` int64 row and column offsets: every offset
+    within 2 and every other one (even rows and columns) out to ``radius`` (a third of the square's)."""
+    out = np.empty(((2 * radius + 1) ** 2, 2), np.int64)
+    k = 0
+    for a in range(-radius, radius + 1):
+        for b in range(-radius, radius + 1):
+            if (abs(a) <= 2 and abs(b) <= 2) or (a % 2 == 0 and b % 2 == 0):
+                out[k, 0], out[k, 1] = a, b
+                k += 1
+    return out[:k]
+
+
+@numba.njit(cache=True, nogil=True)
+def fill_untrusted(out, trusted, offsets, dl, max_jump):  # pragma: no cover - compiled
+    """In place: each untrusted sample of ``out`` ``(C, Hs, Ws)`` with depth (``dl`` ``(Hs, Ws)``, the samples'
+    depths, :func:`block_depths`) takes the mean motion of the trusted samples at ``offsets`` around it
+    (:func:`fill_offsets`) that lie on its own surface (depth within ``max_jump``: a silhouette's
+    untrusted samples take their own body's motion, not the background's), 0 where there are none."""
     C = out.shape[0]
     Hs, Ws = trusted.shape
-    g0, h0, st = grid
-    r0, r1 = max(box[0] - radius, 0), min(box[1] + radius, Hs)
-    c0, c1 = max(box[2] - radius, 0), min(box[3] + radius, Ws)
-    if r0 >= r1 or c0 >= c1:
-        return
-    H, W = r1 - r0, c1 - c0
-    acc = np.zeros((H, W, C + 1), np.float32)  # per row: box sums along x of (motion, trusted)
-    for y in range(H):
-        run = np.zeros(C + 1, np.float32)
-        for x in range(-radius, W + radius):
-            if x + radius < W and trusted[r0 + y, c0 + x + radius]:
-                for c in range(C):
-                    run[c] += out[c, r0 + y, c0 + x + radius]
-                run[C] += 1
-            if x - radius - 1 >= 0 and trusted[r0 + y, c0 + x - radius - 1]:
-                for c in range(C):
-                    run[c] -= out[c, r0 + y, c0 + x - radius - 1]
-                run[C] -= 1
-            if 0 <= x < W:
-                acc[y, x] = run
-    col = np.zeros((W, C + 1), np.float32)  # box sums along y of the row sums, for row y
-    for y in range(-radius, H + radius):
-        if y + radius < H:
-            col += acc[y + radius]
-        if y - radius - 1 >= 0:
-            col -= acc[y - radius - 1]
-        if 0 <= y < H and box[0] <= r0 + y < box[1]:
-            for x in range(max(box[2] - c0, 0), min(box[3] - c0, W)):
-                yy, xx = r0 + y, c0 + x
-                if not trusted[yy, xx] and col[x, C] > 0.5 and (not depth_only or d[g0 + yy * st, h0 + xx * st] > 0):
-                    for c in range(C):
-                        out[c, yy, xx] = col[x, c] / col[x, C]
+    for i in range(Hs):
+        for j in range(Ws):
+            z = dl[i, j]
+            if trusted[i, j] or not z > 0:
+                continue
+            a0 = a1 = a2 = a3 = np.float32(0)
+            n = 0
+            for k in range(offsets.shape[0]):
+                a, b = i + offsets[k, 0], j + offsets[k, 1]
+                if 0 <= a < Hs and 0 <= b < Ws and trusted[a, b] and abs(dl[a, b] - z) <= max_jump:
+                    a0, a1, a2 = a0 + out[0, a, b], a1 + out[1, a, b], a2 + out[2, a, b]
+                    if C == 4:
+                        a3 += out[3, a, b]
+                    n += 1
+            if n > 0:
+                out[0, i, j], out[1, i, j], out[2, i, j] = a0 / n, a1 / n, a2 / n
+                if C == 4:
+                    out[3, i, j] = a3 / n
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def expand_blocks(low, trusted, shift, d, dx, R, grid, corner, scale, max_jump, out):  # pragma: no cover - compiled
+def expand_blocks(low, trusted, still, shift, dl, d, dx, R, grid, corner, scale, max_jump, out):  # pragma: no cover - compiled
     """Every sample ``(r0 + y, c0 + x)`` of ``d`` ``(H, W)`` (``corner = (r0, c0)``) takes the motion of the
     block samples around it (``low`` ``(C, Hs, Ws)`` of :func:`scene_motion` with ``stride``, filled;
-    ``grid = (g0, h0, stride)`` its origin): their bilinear mean over those on its surface (depth within
+    ``grid = (g0, h0, stride)`` its origin; ``dl`` their depths, :func:`block_depths`): their bilinear mean over those on its surface (depth within
     ``max_jump`` of its own; none such: its own block's), so that a block across a silhouette does not
-    give one side the other's motion. Its depth change is its own where one of them was trusted: ``dx``
-    at the sample moved by their mean ``shift`` (within ``max_jump``), times ``scale`` (a block's would add
-    its sample's depth noise to the whole block); it enters the motion through ``R[:, 2]`` (the motion is
-    linear in it). Writes ``out`` ``(C, Hc, Wc)`` float32."""
+    give one side the other's motion. Its depth change is its own where one of them was trusted and not
+    ``still``: ``dx`` at the sample moved by their mean ``shift`` (within ``max_jump``), times ``scale`` (a
+    block's would add its sample's depth noise to the whole block); it enters the motion through ``R[:, 2]``
+    (the motion is linear in it). Where every block sample around it is still, its motion is 0 (what the
+    rest gives there, without the work: most of a scene stands still). Writes ``out`` ``(C, Hc, Wc)`` float32."""
     g0, h0, stride = grid
     r0, c0 = corner
     H, W = d.shape
     C = out.shape[0]
     Hs, Ws = trusted.shape
     inv = np.float32(1) / stride
+    # tables, not a division per sample (an integer division costs more than the rest of a sample's work)
+    jx = np.empty(out.shape[2], np.int64)
+    wxs = np.empty(out.shape[2], np.float32)
+    for x in range(out.shape[2]):
+        jx[x] = (c0 + x - h0) // stride
+        wxs[x] = np.float32((c0 + x - h0) % stride) * inv
     for y in range(out.shape[1]):
         Y = r0 + y
         i = (Y - g0) // stride
         wy = np.float32((Y - g0) % stride) * inv
         for x in range(out.shape[2]):
             X = c0 + x
-            j = (X - h0) // stride
+            j = jx[x]
             z = d[Y, X]
-            wx = np.float32((X - h0) % stride) * inv
+            wx = wxs[x]
+            if (still[i, j] and (wx == 0 or j + 1 >= Ws or still[i, j + 1])
+                    and (wy == 0 or i + 1 >= Hs or (still[i + 1, j] and (wx == 0 or j + 1 >= Ws or still[i + 1, j + 1])))):
+                for c in range(C):
+                    out[c, y, x] = 0
+                continue
             a0 = a1 = a2 = a3 = wsum = tsum = sx = sy = np.float32(0)
             for di in range(2):
                 ii = i + di
@@ -181,13 +269,13 @@ def expand_blocks(low, trusted, shift, d, dx, R, grid, corner, scale, max_jump, 
                 for dj in range(2):
                     jj = j + dj
                     w = wi * (wx if dj else 1 - wx)
-                    if not (w > 0 and jj < Ws and abs(d[g0 + ii * stride, h0 + jj * stride] - z) <= max_jump):
+                    if not (w > 0 and jj < Ws and abs(dl[ii, jj] - z) <= max_jump):
                         continue
                     wsum += w
                     a0, a1, a2 = a0 + w * low[0, ii, jj], a1 + w * low[1, ii, jj], a2 + w * low[2, ii, jj]
                     if C == 4:
                         a3 += w * low[3, ii, jj]
-                    if trusted[ii, jj]:
+                    if trusted[ii, jj] and not still[ii, jj]:
                         tsum, sx, sy = tsum + w, sx + w * shift[ii, jj, 0], sy + w * shift[ii, jj, 1]
             if not wsum > 0:  # on no block sample's surface: its own block's
                 for c in range(C):

@@ -90,7 +90,7 @@ def test_scene_flow_of_a_still_scene_is_zero_and_bad_sizes_fail():
 
 
 def _direct_motion(sf, d, dx, flow, scale):
-    """Steps 1-3 of align.motion_flow and the box fill, one sample at a time with the cameras' own
+    """Steps 1-3 of align.motion_flow and the same-surface fill, one sample at a time with the cameras' own
     projection (float64), on every ``sf.stride``-th sample, each block then taking its sample's motion:
     the compiled pass's reference."""
     Kd, Kc, s, T = sf.K_depth, sf.K_color, float(sf.flow_scale), sf.T
@@ -99,7 +99,7 @@ def _direct_motion(sf, d, dx, flow, scale):
     rays = Kd.ray_grid()
     st = sf.stride
     m, trusted = np.zeros((-(-H // st), -(-W // st), 3)), np.zeros((-(-H // st), -(-W // st)), bool)
-    shift = np.zeros((*trusted.shape, 2))
+    shift, still = np.zeros((*trusted.shape, 2)), np.zeros(trusted.shape, bool)
 
     def lerp(img, x, y):
         x0, y0 = min(int(x), img.shape[1] - 2), min(int(y), img.shape[0] - 2)
@@ -120,19 +120,25 @@ def _direct_motion(sf, d, dx, flow, scale):
             ix, iy = (int(np.floor(c + 0.5)) for c in q)
             if not (0 <= ix < W and 0 <= iy < H) or not abs(dx[iy, ix] - d[y, x]) <= float(sf.max_jump_m):
                 continue
-            xq, yq = Kd.pixel_to_normalized(np.clip(q, 0, [W - 1, H - 1])[None])[0]
-            m[i, j] = scale * (dx[iy, ix] * np.array([xq, yq, 1.0]) - d[y, x] * rays[y, x])
             trusted[i, j] = True
             shift[i, j] = q - (x, y)
+            if np.hypot(*shift[i, j]) <= 0.5 and abs(dx[iy, ix] - d[y, x]) <= 0.02:  # stands still: motion 0
+                still[i, j] = True
+                continue
+            xq, yq = Kd.pixel_to_normalized(np.clip(q, 0, [W - 1, H - 1])[None])[0]
+            m[i, j] = scale * (dx[iy, ix] * np.array([xq, yq, 1.0]) - d[y, x] * rays[y, x])
     out, r = m.copy(), -(-sf.fill_px // st)
+    mj = float(sf.max_jump_m)
     for y, x in zip(*np.nonzero(~trusted)):
         if not d[y * st, x * st] > 0:  # a sample without depth needs no motion
             continue
-        win = (slice(max(y - r, 0), y + r + 1), slice(max(x - r, 0), x + r + 1))
-        if trusted[win].any():
-            out[y, x] = m[win][trusted[win]].mean(axis=0)
+        win = [(y + a, x + b) for a in range(-r, r + 1) for b in range(-r, r + 1)  # within 2, then every other
+               if (abs(a) <= 2 and abs(b) <= 2) or (a % 2 == 0 and b % 2 == 0)]
+        same = [(a, b) for a, b in win if 0 <= a < m.shape[0] and 0 <= b < m.shape[1] and trusted[a, b]
+                and abs(d[a * st, b * st] - d[y * st, x * st]) <= mj]  # its own surface's
+        if same:
+            out[y, x] = np.mean([m[a, b] for a, b in same], axis=0)
     full = np.zeros((H, W, 3))
-    mj = float(sf.max_jump_m)
     for y, x in np.ndindex(H, W):  # bilinear over the block samples on its surface; depth: its own change
         i, j = y // st, x // st
         acc, wsum, tsum, sh = np.zeros(3), 0.0, 0.0, np.zeros(2)
@@ -141,7 +147,7 @@ def _direct_motion(sf, d, dx, flow, scale):
             w = ((y % st) / st if di else 1 - (y % st) / st) * ((x % st) / st if dj else 1 - (x % st) / st)
             if w > 0 and ii < out.shape[0] and jj < out.shape[1] and abs(d[ii * st, jj * st] - d[y, x]) <= mj:
                 wsum, acc = wsum + w, acc + w * out[ii, jj]
-                if trusted[ii, jj]:
+                if trusted[ii, jj] and not still[ii, jj]:
                     tsum, sh = tsum + w, sh + w * shift[ii, jj]
         full[y, x] = acc / wsum if wsum > 0 else out[i, j]
         if tsum > 0:
@@ -158,16 +164,18 @@ def test_compiled_scene_flow_equals_a_direct_loop(distortion, stride):
     Kd = Intrinsics(24, 18, 20.0, 21.0, 11.5, 8.5, "opencv" if distortion else "none", coeffs)
     Kc = Intrinsics(40, 30, 30.0, 30.0, 19.5, 14.5, "opencv" if distortion else "none", coeffs)
     sf = SceneFlow(Kd, Kc, Transform.from_rotvec([0.01, -0.02, 0.005], [-0.05, 0.002, 0.01]), flow_scale=0.5,
-                   max_jump_m=0.15, fill_px=3, stride=stride)
+                   max_jump_m=0.15, fill_px=3, stride=stride, gains=(1.0,))
     yy, xx = np.mgrid[0:18, 0:24]
     d = (2.0 + 0.01 * xx - 0.02 * yy + rng.normal(0, 0.005, Kd.shape)).astype(np.float32)
     d[4:11, 6:13] = 1.2  # an object in front: its edges make targets on another surface
     d[rng.random(Kd.shape) < 0.1] = np.nan
     dx = (d + rng.normal(0, 0.02, Kd.shape)).astype(np.float32)
     flow = rng.normal(0, 2.0, (15, 20, 2)).astype(np.float32)
+    flow[9:, :8] = rng.normal(0, 0.01, (6, 8, 2))  # a region standing still (motion 0)
     m, trusted = sf.motion(d, dx, flow, scale=0.3)
     ref_m, ref_trusted = _direct_motion(sf, d, dx, flow, 0.3)
-    assert 0.3 < ref_trusted.mean() < 0.9 and (ref_m != 0).any(axis=-1)[~ref_trusted].any()  # all three kinds
+    assert 0.3 < ref_trusted.mean() < 0.9 and (ref_m != 0).any(axis=-1)[~ref_trusted].any()  # all four kinds
+    assert (ref_trusted & (ref_m == 0).all(axis=-1)).any()
     assert (trusted != ref_trusted).sum() <= 1  # a float32 rounding at a test's threshold, at most
     same = np.ones(d.shape, bool) if (trusted == ref_trusted).all() else np.zeros(d.shape, bool)
     # with lens distortion the ray through the target is interpolated in the ray grid: 0.1 mm here (pixels 0.05 rad)
@@ -191,7 +199,7 @@ def test_motion_laid_out_for_the_warp_equals_the_motion_image_rotated(stride):
     inner[e if r0 > 0 else 0:(r1 - r0 - e) if r1 < m.shape[0] else None,
           e if c0 > 0 else 0:(c1 - c0 - e) if c1 < m.shape[1] else None] = True
     inner = inner.ravel()
-    assert 0.8 < inner.mean() < 1
+    assert 0.6 < inner.mean() < 1
     np.testing.assert_allclose(crop.dst[:, inner], (warper.T.R @ direct.T)[:, inner], atol=1e-6)
     np.testing.assert_allclose(crop.dz[inner], m[r0:r1, c0:c1, 2].ravel()[inner], atol=1e-6)
     assert np.abs(crop.dst).max() > 0.005  # the person moved
@@ -226,3 +234,28 @@ def test_pair_references_warp_flow_carried_pairs_as_their_edge_rule_does():
     assert np.array_equal(m.edge_mask, band | (at_warp & ~np.isfinite(ref))) and (at_warp & ~band).any()
     plain = warper(depth[0], motion=crop)  # the strict rule: the plain warper's moved reference, banded
     assert np.array_equal(out["strict"].depth, EdgeRule.named("strict").apply(plain)[0], equal_nan=True)
+
+
+def test_flow_gain_puts_back_an_underestimated_flow():
+    """DIS at its ultrafast preset finds 0.5-0.8 of walking people's image motion (measured against the
+    simulator's true motion, session 8): a flow shrunk to 0.6 of the one found is scaled back up by the gain
+    (the factor that carries most moving samples onto their own surface in the other frame), and the
+    reference lands where the ray caster puts the objects; the flow as found keeps a gain near 1."""
+    from align.motion_flow import moved_reference
+
+    alpha = 0.25
+    f = _frames((0.0, 0.2, 2.2), (0.07, 0.0, 0.0), alpha)
+    warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
+    flow = ColorFlow()(*(flow_image(c) for c in f["color"]))
+    gained, as_is = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"]), SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"], gains=(1.0,))
+
+    def mae(sf, fl):
+        return _mae(moved_reference(warper, f["depth"][0], sf.crop_motion(*f["depth"], fl, scale=alpha, warper=warper), 1.0),
+                    f["truth"], f["roi"])
+
+    weak = (0.6 * flow).astype(np.float32)
+    full = mae(gained, flow)
+    assert gained.last_gain <= 1.2
+    fixed, left = mae(gained, weak), mae(as_is, weak)
+    assert gained.last_gain >= 1.35, gained.last_gain
+    assert fixed < left - 1.0 and fixed < full + 1.0, (fixed, left, full)

@@ -17,6 +17,10 @@ is left), and compared with the LQ truth depth on the region of interest compute
   with the share of ROI pixels the rule masked (the plain warp has depth there, the reference none;
   ``strict-fg``/``mixed-fg`` mask only where the reference is in front of the background)
   and the share of ROI pixels without a reference at all (holes of the HQ sensor, shadows, masks);
+* the ROI pixels without a reference, by cause: masked by the rule; the plain (midpoint) warp covers
+  them (the gap past a surface's last sample the rule's warp leaves); the plain warp of the HQ truth
+  depth covers them (HQ samples lost: mixed pixels dropped, dark or out of range); not even that
+  (occlusion shadows, outside the HQ view);
 * the mean over frames of each frame's MAE and RMSE (as the leaderboard's "HQ sensor" column), their
   ratio (issue 12 asks RMSE within 2x MAE), and the share of the squared error that pixels more than
   300 mm off (a surface the LQ camera does not see there) carry.
@@ -64,15 +68,17 @@ def main() -> None:
         s = t_lq[j] - tr.time_shift_at_us(t_lq[j])
         i = int(np.argmin(np.abs(t_hq - s)))
         pairs.append((s - t_hq[i], sess.read_depth("hq", int(f_hq[i])), tr.depth("lq", int(f_lq[j])),
-                      sess.read_depth("lq", int(f_lq[j]))))
+                      sess.read_depth("lq", int(f_lq[j])), tr.depth("hq", int(f_hq[i])).astype(np.float32)))
     print(f"{len(pairs)} pairs, HQ-LQ time apart (ms): {', '.join(f'{dt / 1000:+.2f}' for dt, *_ in pairs)}")
     plain = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), tr.T_lq_hq, edge_reach=0.5)
+    # what the plain warp covers, and what it would cover from the HQ truth (no mixes, no sensor holes)
+    cover = [(np.isfinite(plain(hq)), np.isfinite(plain(hq_truth))) for _, hq, _, _, hq_truth in pairs]
     # one background model (from the plain warp) for every rule
-    bg = background_depth(np.stack([np.where(np.isfinite(r), r, lq) for r, lq in ((plain(hq), lq) for _, hq, _, lq in pairs)]))
+    bg = background_depth(np.stack([np.where(np.isfinite(r), r, p[3]) for r, p in ((plain(p[1]), p) for p in pairs)]))
     for name in sorted(RULES, key=lambda n: n != "midpoint"):
         rule = EdgeRule.named(name)
         W = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), tr.T_lq_hq, edge_reach=rule.edge_reach)
-        _report(name, [(_reference(rule, W, hq, bg), truth, lq) for _, hq, truth, lq in pairs], bg)
+        _report(name, [(_reference(rule, W, hq, bg), truth, lq, c) for (_, hq, truth, lq, _), c in zip(pairs, cover)], bg)
 
 
 def _reference(rule: EdgeRule, warper, hq, background=None):
@@ -87,10 +93,14 @@ def _report(name: str, rows, bg) -> None:
     where = dict.fromkeys(("large", "ref farther", "ref nearer", "<= 2 px from a hole", "<= 3 px from a truth edge",
                            "<= 3 px from a reference edge"), 0)
     err, frame, n_roi, n_masked, n_none = [], [], 0, 0, 0
-    for (ref, mask), truth, lq in rows:
+    why = dict.fromkeys(("masked by the rule", "past a surface's last sample", "HQ samples lost", "unseen by the HQ"), 0)
+    for (ref, mask), truth, lq, (plain, plain_truth) in rows:
         roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), bg) & np.isfinite(truth)
         use = roi & np.isfinite(ref)
         n_roi, n_masked, n_none = n_roi + roi.sum(), n_masked + (roi & mask).sum(), n_none + (roi & ~use).sum()
+        none, m = roi & ~use, roi & ~use & mask
+        for key, sel in zip(why, (m, none & ~m & plain, none & ~m & ~plain & plain_truth, none & ~m & ~plain & ~plain_truth)):
+            why[key] += int(sel.sum())
         e = ref - truth
         err.append(e[use])
         f = np.abs(e[use]) * 1000
@@ -111,6 +121,7 @@ def _report(name: str, rows, bg) -> None:
           f"{100 * np.sum(e[e > 300] ** 2) / max(np.sum(e ** 2), 1e-12):.1f} %")
     share = {k: f"{k} {v}" if k == "large" else f"{k} {100 * v / max(where['large'], 1):.0f} %" for k, v in where.items()}
     print("  errors > 50 mm: " + ", ".join(share.values()))
+    print("  ROI pixels without reference: " + ", ".join(f"{k} {100 * v / n_roi:.2f} %" for k, v in why.items()))
 
 
 if __name__ == "__main__":

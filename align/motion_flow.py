@@ -211,9 +211,11 @@ class SceneFlow:
         out, shift = np.empty((channels, *low), f32), np.empty((*low, 2), f32)
         trusted, has, still = np.empty(low, bool), np.empty(low, bool), np.empty(low, bool)
         scene_shift(d, np.ascontiguousarray(flow, f32), cams, grid, shift, has)
-        if self.gains.size > 1:
-            self.last_gain = round(float(self.gains[flow_gain(d, dx, shift, has, grid, self.gains, self.max_jump_m, f32(GAIN_MIN_PX))]), 6)
-            shift *= f32(self.last_gain)
+        k = 0 if self.gains.size == 1 else flow_gain(d, dx, shift, has, grid, self.gains, self.max_jump_m,
+                                                     f32(GAIN_MIN_PX))
+        self.last_gain = round(float(self.gains[k]), 6)
+        if self.last_gain != 1:
+            shift *= self.gains[k]
         scene_motion(d, dx, shift, has, cams, np.ascontiguousarray(R, f32), grid, f32(scale), self.max_jump_m,
                      f32(STILL_PX), f32(STILL_DZ_M), out, trusted, still)
         dl = block_depths(d, grid, low)

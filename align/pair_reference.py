@@ -14,7 +14,9 @@ An HQ depth frame becomes the LQ frame's reference in three steps, always in thi
 
 The aligned dataset's references (:func:`align.pipeline.write_pair_dataset`) and every error
 reported against truth for them (the loop's end-to-end table, :mod:`align.loop.report`) come from
-:class:`PairReferences`, so the numbers a report prints are those of the references it writes.
+:class:`PairReferences`, so the numbers a report prints are those of the references it writes (for the
+``-fg`` rules the loop's table has no ROI background and scores the base rule's references; the written
+ones differ from them only where the reference lies on the background, outside the ROI).
 No I/O: HQ frames come through a callable.
 """
 from __future__ import annotations

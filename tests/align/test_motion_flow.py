@@ -6,7 +6,7 @@ import pytest
 
 from align.errors import WarpInputError
 from align.motion import MotionReference
-from align.motion_flow import ColorFlow, FlowMotion, SceneFlow, flow_image
+from align.motion_flow import ColorFlow, FlowMotion, SceneFlow, flow_image, settle_flow
 from align.warp import DepthWarper
 from capture.camera import Intrinsics, Transform
 from tests.align.scene import cast, room, texture
@@ -228,7 +228,8 @@ def test_pair_references_warp_flow_carried_pairs_as_their_edge_rule_does():
     rule = EdgeRule.named("mixed")
     warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
     sf = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"])
-    crop = sf.crop_motion(*depth, ColorFlow()(*(flow_image(c) for c in f["color"])), scale=0.25, warper=warper)
+    grey = [flow_image(c) for c in f["color"]]
+    crop = sf.crop_motion(*depth, settle_flow(ColorFlow()(*grey), *grey), scale=0.25, warper=warper)
     moved, at_warp = rule.warp(warper, depth[0], motion=crop)
     ref, band = rule.apply(moved)
     m = out["mixed"]
@@ -261,3 +262,28 @@ def test_flow_gain_puts_back_an_underestimated_flow():
     fixed, left = mae(gained, weak), mae(as_is, weak)
     assert gained.last_gain >= 1.35, gained.last_gain
     assert fixed < left - 1.0 and fixed < full + 1.0, (fixed, left, full)
+
+
+def test_settled_flow_rests_where_textured_image_did_not_change_and_keeps_what_moved():
+    """align.motion_flow.settle_flow: DIS spreads a moving patch's flow over the still background around it;
+    settling puts the textured still background back at 0 and keeps the moving patch's flow and the flow
+    over a uniform region (where no change is no evidence of rest)."""
+    rng = np.random.default_rng(4)
+    g0 = cv2.GaussianBlur((rng.random((135, 240)) * 255).astype(np.uint8), (3, 3), 0.8)
+    g0[90:130, 10:60] = 128  # uniform
+    g1 = g0.copy()
+    patch = cv2.GaussianBlur((rng.random((40, 40)) * 255).astype(np.uint8), (3, 3), 0.8)
+    g0[40:80, 100:140], g1[40:80, 104:144] = patch, patch  # the patch moves 4 px right
+    flow = ColorFlow()(g0, g1)
+    out = settle_flow(flow, g0, g1)
+    moving = np.zeros(g0.shape, bool)
+    moving[30:90, 90:154] = True  # the patch in either frame, with the blur's reach
+    still = ~cv2.dilate(moving.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+    still[85:135, 5:65] = False  # the uniform region and its border
+    spread = still & (np.abs(flow).max(axis=-1) > 0.05)
+    assert spread.sum() > 500  # DIS did spread the patch's flow
+    assert (out[spread] == 0).all()
+    inside = np.zeros(g0.shape, bool)
+    inside[44:76, 104:136] = True
+    assert np.array_equal(out[inside], flow[inside]) and np.median(flow[inside][:, 0]) > 2  # DIS: 2.9 of 4 px
+    assert np.array_equal(out[95:125, 15:55], flow[95:125, 15:55])

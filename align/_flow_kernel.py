@@ -93,10 +93,10 @@ def _lands(d, dx, y, x, sx, sy, max_jump):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def flow_gain(d, dx, shift, has, grid, gains, max_jump, min_px):  # pragma: no cover - compiled
-    """The index into ``gains`` ``(G,)`` float32 of the factor on the samples' flow ``shift`` (:func:`scene_shift`)
-    that carries the most of the moving samples (flow over ``min_px``) onto their own surface in ``dx``
-    (depth within ``max_jump``): the count of those that land on it minus those that do not, the first
-    of equal counts."""
+    """``(index, landed, moving)``: the index into ``gains`` ``(G,)`` float32 of the factor on the samples' flow
+    ``shift`` (:func:`scene_shift`) that carries the most of the ``moving`` samples (flow over ``min_px``)
+    onto their own surface in ``dx`` (depth within ``max_jump``; the count of those that land on it minus
+    those that do not, the first of equal counts), and how many ``landed`` with it."""
     r0, c0, stride = grid
     n, m = 0, has.shape[0] * has.shape[1]
     moving = np.empty((5, m), np.float32)  # the moving samples' x, y, depth and shift, contiguous
@@ -118,7 +118,7 @@ def flow_gain(d, dx, shift, has, grid, gains, max_jump, min_px):  # pragma: no c
             count += 1 if ok else -1
         if count > best_n:
             best, best_n = g, count
-    return best
+    return best, (best_n + n) // 2, n
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")

@@ -36,6 +36,12 @@ leading samples onto the background ahead. One factor per pair: the bias is a pr
 not of each point. A finer DIS (finest scale 1, patch stride 6: endpoint error 1.5 px, 2.5x the cost)
 did not lower the reference's error (3.39 4.14 3.03 mm on seeds 1-3).
 
+**A finer flow where the fast one fails.** On a near person moving 10-20 px per frame DIS ultrafast can
+find a third of the motion or less (seed 5's HQ frame 8: endpoint error 8.3 px of 12.6; no gain puts it
+back). Such a pair shows itself: its moving samples land on their own surface less often (0.60-0.73 of
+them at the best gain, against 0.77-0.87 elsewhere). Below ``FALLBACK_LANDED`` the pair's flow is found
+again at DIS's medium preset (22 ms instead of 2.5 ms; 3 of 30 pairs on seeds 1-3).
+
 A trusted sample whose flow is under ``STILL_PX`` and whose depth changes by under ``STILL_DZ_M``
 stands still: motion 0 (moved by ``frac`` of under half a pixel the warp does not change; its depth
 change would be the two frames' noise), and blocks whose samples all stand still skip the expansion.
@@ -89,6 +95,10 @@ DEFAULT_FILL_PX = 16
 #: factors tried on the optical flow (:class:`SceneFlow`'s ``gains``): DIS at its ultrafast preset finds
 #: 0.5-0.8 of the true image motion of moving people (measured against the simulator's, session 8)
 DEFAULT_GAINS = (1.0, 1.1, 1.2, 1.35, 1.5, 1.7)
+#: a pair whose moving samples land on their own surface less often than this share (at the best gain) gets
+#: the flow again at DIS's ``FALLBACK_PRESET``
+FALLBACK_LANDED = 0.75
+FALLBACK_PRESET = cv2.DISOPTICAL_FLOW_PRESET_MEDIUM
 #: :func:`settle_flow`: the flow is 0 where the grey images changed by under this many grey levels (5x5
 #: mean) on texture over this (5x5 mean of the absolute Sobel gradients)
 SETTLE_CHANGE = 3
@@ -133,18 +143,19 @@ def settle_flow(flow: np.ndarray, grey_o: np.ndarray, grey_x: np.ndarray, *, max
 
 
 class ColorFlow:
-    """Dense optical flow between two grey images (OpenCV DIS, ultrafast preset; one per thread)."""
+    """Dense optical flow between two grey images (OpenCV DIS at ``preset``, ultrafast by default; one per thread)."""
 
-    def __init__(self) -> None:
+    def __init__(self, preset: int | None = None) -> None:
         import threading
 
         self._local = threading.local()
+        self.preset = cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST if preset is None else int(preset)
 
     def __call__(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Flow ``(h, w, 2)`` float32 pixels of ``a``'s pixels into ``b``."""
         dis = getattr(self._local, "dis", None)
         if dis is None:
-            dis = self._local.dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
+            dis = self._local.dis = cv2.DISOpticalFlow_create(self.preset)
         if a.shape != b.shape:
             raise WarpInputError(f"flow images differ in size: {a.shape} and {b.shape}")
         return dis.calc(a, b, None)
@@ -175,7 +186,7 @@ class SceneFlow:
         self.gains = np.asarray(DEFAULT_GAINS if gains is None else gains, f32).ravel()
         if self.gains.size == 0 or not (self.gains > 0).all():
             raise WarpInputError(f"scene flow gains must be positive factors, got {gains!r}")
-        self.last_gain = 1.0
+        self.last_gain, self.last_landed = 1.0, (0, 0)
         rays = K_depth.ray_grid().astype(f32)  # (H, W, 3), z = 1, undistorted
         self._rays = np.ascontiguousarray(rays[..., :2])  # (H, W, 2)
         self._Rr = np.ascontiguousarray(np.einsum("ij,hwj->ihw", T_color_depth.R, rays), f32)  # (3, H, W)
@@ -235,9 +246,8 @@ class SceneFlow:
         out, shift = np.empty((channels, *low), f32), np.empty((*low, 2), f32)
         trusted, has, still = np.empty(low, bool), np.empty(low, bool), np.empty(low, bool)
         scene_shift(d, np.ascontiguousarray(flow, f32), cams, grid, shift, has)
-        k = 0 if self.gains.size == 1 else flow_gain(d, dx, shift, has, grid, self.gains, self.max_jump_m,
-                                                     f32(GAIN_MIN_PX))
-        self.last_gain = round(float(self.gains[k]), 6)
+        k, landed, moving = flow_gain(d, dx, shift, has, grid, self.gains, self.max_jump_m, f32(GAIN_MIN_PX))
+        self.last_gain, self.last_landed = round(float(self.gains[k]), 6), (int(landed), int(moving))
         if self.last_gain != 1:
             shift *= self.gains[k]
         scene_motion(d, dx, shift, has, cams, np.ascontiguousarray(R, f32), grid, f32(scale), self.max_jump_m,
@@ -290,7 +300,7 @@ class FlowMotion:
                  warp=None) -> None:
         self._read_depth, self._read_color, self.warper, self.scene_flow = read_depth, read_color, warper, scene_flow
         self._warp = warp
-        self._flow = ColorFlow()
+        self._flow, self._fallback = ColorFlow(), ColorFlow(FALLBACK_PRESET)
         self._keep = max(int(keep), 2)
         self._depth: dict[int, np.ndarray] = {}
         self._grey: dict[int, np.ndarray | None] = {}
@@ -315,6 +325,10 @@ class FlowMotion:
         do, dx = (self._cached(self._depth, k, self._read_depth) for k in (own, other))
         flow = settle_flow(self._flow(go, gx), go, gx)
         motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper)  # already frac of the way
+        landed, moving = self.scene_flow.last_landed
+        if moving and landed < FALLBACK_LANDED * moving:  # the fast flow failed here: a finer one
+            flow = settle_flow(self._fallback(go, gx), go, gx)
+            motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper)
         if self._warp is not None:
             return self._warp(do, motion)
         return moved_reference(self.warper, do, motion, 1.0)

@@ -287,3 +287,28 @@ def test_settled_flow_rests_where_textured_image_did_not_change_and_keeps_what_m
     inside[44:76, 104:136] = True
     assert np.array_equal(out[inside], flow[inside]) and np.median(flow[inside][:, 0]) > 2  # DIS: 2.9 of 4 px
     assert np.array_equal(out[95:125, 15:55], flow[95:125, 15:55])
+
+
+def test_a_pair_whose_flow_lands_off_its_surfaces_gets_the_finer_flow():
+    """FlowMotion: when too few moving samples land on their own surface in the other frame (the fast flow
+    failed, as DIS ultrafast does on a near person's large motion), the pair's flow is found again at DIS's
+    finer preset, and the reference lands where the ray caster puts the objects."""
+    alpha = 0.25
+    f = _frames((0.0, 0.2, 2.2), (0.07, 0.0, 0.0), alpha)
+    warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
+
+    def reference(broken):
+        fm = FlowMotion(lambda i: f["depth"][i], lambda i: f["color"][i], warper, SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"]))
+        calls = []
+        fallback = fm._fallback
+        fm._fallback = lambda a, b: calls.append(1) or fallback(a, b)
+        if broken:  # the fast flow sends the moving body the wrong way
+            fast = fm._flow
+            fm._flow = lambda a, b: -fast(a, b)
+        return _mae(fm(0, 1, alpha), f["truth"], f["roi"]), calls, fm.scene_flow.last_landed
+
+    good, calls_good, landed = reference(False)
+    assert not calls_good and landed[0] > 0.75 * landed[1]
+    bad, calls_bad, _ = reference(True)
+    plain = _mae(warper(f["depth"][0]), f["truth"], f["roi"])
+    assert calls_bad == [1] and bad < 0.5 * plain, (bad, good, plain)  # (~23 against 13 and 53 mm)

@@ -8,6 +8,8 @@
     [level1.data]   crop, flip, sequence_length = 1, depth_min_m, depth_max_m, preload
     [level1.prefilter] kind = "none" | "bilateral", sigma_spatial, sigma_color, depth_adaptive, radius
                     (level 1 corrects the filtered LQ depth: methods.ssdd.prefilter)
+    [level1.gate]   sigmas = 0 (off), floor_m, noise_z2 (not in the paper: eq. 32 only where the reference
+                    is within the LQ's noise of the LQ depth, methods.ssdd.gate; also [level2.gate])
     [level1.optim]  epochs, batch_size, lr, weight_decay, samples_per_epoch, grad_clip, seed
     [level2]        level1_input = "final" | "fold_mean" (what feeds level 2 at inference, below)
                     centre = "frame" | "sequence" (the centred depth code of level 2's frames, below)
@@ -34,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from methods.nn.config import DataConfig, OptimConfig
+from methods.ssdd.gate import GateConfig
 from methods.ssdd.motion import MotionConfig
 from methods.ssdd.networks import NetConfig
 from methods.ssdd.prefilter import PrefilterConfig
@@ -50,6 +53,7 @@ class Level1Config:
     data: DataConfig = field(default_factory=DataConfig)
     optim: OptimConfig = field(default_factory=OptimConfig)
     prefilter: PrefilterConfig = field(default_factory=PrefilterConfig)
+    gate: GateConfig = field(default_factory=GateConfig)
 
     def __post_init__(self) -> None:
         if self.model.recurrent:
@@ -66,6 +70,7 @@ class Level2Config:
     level1_input: str = "final"
     centre: str = "frame"
     motion: MotionConfig = field(default_factory=MotionConfig)
+    gate: GateConfig = field(default_factory=GateConfig)
 
     def __post_init__(self) -> None:
         if self.centre not in CENTRES:

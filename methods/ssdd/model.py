@@ -19,6 +19,7 @@ from methods.nn.config import DataConfig
 from methods.nn.distributed import unwrap
 from methods.nn.losses import masked_l1
 from methods.nn.normalize import decode_depth, encode_depth
+from methods.ssdd.gate import GateConfig, reference_gate
 from methods.ssdd.motion import FLOW_X, FLOW_Y, MotionConfig, warp, warp_state
 from methods.ssdd.networks import SSDDLSTMUNet, SSDDUNet
 
@@ -125,30 +126,34 @@ def batch_flow(batch: dict) -> torch.Tensor | None:
     return torch.cat([batch[FLOW_X] * sign, batch[FLOW_Y]], dim=2)
 
 
-def _mask(batch: dict, holes: bool) -> torch.Tensor:
-    """M_r of eq. 32, restricted to pixels where the LQ sensor measured depth unless ``holes``.
+def _mask(batch: dict, holes: bool, gate: GateConfig | None = None) -> torch.Tensor:
+    """M_r of eq. 32, restricted to pixels where the LQ sensor measured depth unless ``holes``, and to
+    the reference gate's pixels with ``gate`` (:mod:`methods.ssdd.gate`; None or off: no gate).
 
     Without the restriction the loss is dominated by filling the LQ holes (errors of metres on a few
     per cent of the pixels against centimetres of noise elsewhere) and the network trades a bias on
     the measured pixels for it; inference keeps the holes anyway (``fill_holes=false``)."""
-    return batch["roi"] if holes else batch["roi"] * torch.isfinite(batch["lq_depth"])
+    m = batch["roi"] if holes else batch["roi"] * torch.isfinite(batch["lq_depth"])
+    if gate is not None and gate.enabled:
+        m = m * reference_gate(batch["reference"], batch["lq_depth"], gate)
+    return m
 
 
-def level1_loss(data: DataConfig, *, holes: bool = False):
+def level1_loss(data: DataConfig, *, holes: bool = False, gate: GateConfig | None = None):
     """Eq. 32 loss of level 1 on a training batch (keys of :mod:`methods.nn.data`; the prefiltered
-    base, when the net takes one, as the extra layer ``PREFILTERED``)."""
+    base, when the net takes one, as the extra layer ``PREFILTERED``), on the ``gate``'s pixels."""
     def loss(net, batch):
         pred = level1_depth(net, batch["lq_depth"], batch["color"], data, batch.get(PREFILTERED))
-        return masked_l1(pred, batch["reference"], _mask(batch, holes), batch["valid"])
+        return masked_l1(pred, batch["reference"], _mask(batch, holes, gate), batch["valid"])
     return loss
 
 
 def level2_loss(data: DataConfig, *, holes: bool = False, sequence_centre: bool = False,
-                motion: MotionConfig | None = None):
+                motion: MotionConfig | None = None, gate: GateConfig | None = None):
     """Eq. 32 loss of level 2 over every frame of a batch of sequences with a ``level1`` layer (and the
-    flow layers :data:`methods.ssdd.motion.FLOW_X`, ``FLOW_Y`` with ``motion``)."""
+    flow layers :data:`methods.ssdd.motion.FLOW_X`, ``FLOW_Y`` with ``motion``), on the ``gate``'s pixels."""
     def loss(net, batch):
         pred = level2_depth(net, batch["level1"], batch["lq_depth"], batch["color"], data,
                             sequence_centre=sequence_centre, flow=batch_flow(batch), motion=motion)
-        return masked_l1(pred, batch["reference"], _mask(batch, holes), batch["valid"])
+        return masked_l1(pred, batch["reference"], _mask(batch, holes, gate), batch["valid"])
     return loss

@@ -102,7 +102,7 @@ def _fit_level1(ctx: RunContext, cfg: Level1Config, train: list[AlignedDataset],
                 folder: str, name: str, *, pre: dict | None = None) -> SSDDUNet:
     holes = ctx.config.loss_on_holes
     job = FitJob(name=name, model=seeded(lambda: build_level1(cfg), cfg.optim.seed),
-                 loss=level1_loss(cfg.data, holes=holes),
+                 loss=level1_loss(cfg.data, holes=holes, gate=cfg.gate),
                  train=_samples(train, cfg.data, seed=cfg.optim.seed, train=True, extra=pre),
                  validation=_samples(validation, cfg.data, seed=cfg.optim.seed, train=False, extra=pre),
                  optim=cfg.optim, folder=ctx.out / folder, num_workers=cfg.data.num_workers,
@@ -196,7 +196,7 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
                  for ds in validation}
     job = FitJob(name="level 2", model=seeded(lambda: build_level2(l2), l2.optim.seed),
                  loss=level2_loss(l2.data, holes=cfg.loss_on_holes, sequence_centre=l2.centre == "sequence",
-                                  motion=l2.motion),
+                                  motion=l2.motion, gate=l2.gate),
                  train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof, **motion}),
                  validation=_samples(validation, l2.data, seed=l2.optim.seed, train=False,
                                      extra={"level1": val_preds, **motion}),

@@ -38,7 +38,7 @@ its frame offsets; their mean over ``i`` is the cost curve
 ``phi + kT`` (``T`` the view's frame period), so ``Delta`` is the vertex of the V ``b + a |dt -
 Delta|`` through the smallest sample ``tau_0`` and the curve at ``tau_0 +- T`` (exact for a V). The
 V is not symmetric on the simulator (what moves leaves or enters the other camera's view
-differently before and after the instant): the vertex was up to 12 ms off the truth there, the
+differently before and after the instant): the vertex was up to 11 ms off the truth there, the
 smallest cost at the frame offset nearest to it. Uncertainty: the vertex's sd over a bootstrap
 of the reference frames combined with :data:`SHAPE_SD_US` for that asymmetry. Unobservable (the
 placeholder stays) when too few foreground pixels were compared (nothing moves), the V does not
@@ -69,8 +69,9 @@ HIDDEN_M = 0.05
 MIN_PIXELS = 200
 #: sd (µs) of the vertex's systematic error, added to the bootstrap's: the V is not symmetric (what
 #: moves leaves or enters the other camera's view differently before and after the instant). On the
-#: simulator's four-view sessions (seeds 2001, 2015) the vertex was 0.4-12 ms off the truth (RMS 6.6 ms,
-#: the nearest frame offset always the smallest cost) while the bootstrap sd was 0.2-0.5 ms.
+#: simulator's four-view sessions (seeds 2001, 2015; 6 views) the vertex was 0.9-11 ms off the truth (RMS
+#: 6.0 ms) while the bootstrap sd was 0.2-0.5 ms; held out (seeds 2016, 2017; 6 views, through
+#: ``depthbench align``): 0.2-6.1 ms, RMS 4.3 ms.
 SHAPE_SD_US = 7000.0
 #: the shift is unobservable when its bootstrap sd exceeds this share of the frame period
 MAX_SD_PERIODS = 0.25

@@ -258,7 +258,8 @@ def write_rig_report(root: Path, session, rig, fits: dict, outputs: dict) -> Pat
         tr = 1000 * np.linalg.norm(T.t) if T is not None else float("nan")
         sd = rig.std.get(v)
         sd_txt = f"{sd[1]:.3f} / {1000 * sd[0]:.1f}" if sd is not None and v != rig.reference else "-"
-        lines.append(f"| {v} (from {pf.setup.hq}) | {pf.shift.time_shift_us / 1000:.3f} | {pf.shift.std_us / 1000:.3f} | "
+        how = " (depth)" if pf.shift.model == "depth" else "" if pf.shift.observable else " (placeholder)"
+        lines.append(f"| {v} (from {pf.setup.hq}) | {pf.shift.time_shift_us / 1000:.3f}{how} | {pf.shift.std_us / 1000:.3f} | "
                      f"{rot:.3f} | {tr:.1f} | {sd_txt} | {pf.fit.rms_px:.3f} | {off.get(v, float('nan')):.1f} | "
                      f"{outputs[v].kept} | [{v}/report.md]({v}/report.md) |")
     if ref:

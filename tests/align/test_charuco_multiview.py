@@ -222,6 +222,7 @@ def test_multiview_view_shifts_from_depth_against_the_simulators(multiview):
         if meta["time_model"]["kind"] == "depth":
             assert rig["time_sync"][v]["observable"] and meta["time_shift_us"] == rig["time_shift_us"][v]
             assert abs(meta["time_shift_us"] - truth["pairs"][v]["time_shift_us"]) < 4000
+            assert f"| {v} (from hq) | {meta['time_shift_us'] / 1000:.3f} (depth) |" in (out / "report.md").read_text()
 
 
 def _board_session(root, spec, T_lq_hq, T_hqd_hqc):

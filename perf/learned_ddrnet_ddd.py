@@ -7,8 +7,9 @@ hypercolumns; DDD: channel steps 8 ... 128) on one 640x480 frame, as the methods
 holes, refinement on the grey image), with random weights (the time does not depend on their values),
 against the suite's hole-aware bilateral filter in the same run (the ratio is the number that travels
 between machines). Training: samples per second of the ``tiny`` configs' loss + backward + Adam step on
-synthetic batches of their shapes (DDRNet: batches of 8 crops of 64x64; DDD: batches of 2 samples of
-four 160x120 views, splatting between them). Runs are interleaved; the table gives medians.
+synthetic batches of their shapes (DDRNet: batches of 8 crops of 64x64; DDD: the shipped ``tiny`` config's
+model, loss and batch size, four views of the demo's 320x240, splatting between them; its warm start, a
+smoothing fit on 64x64 crops, is not timed). Runs are interleaved; the table gives medians.
 
 Is the inference time the networks' arithmetic or waste? Each network's multiply-adds per frame are
 counted (``torch.utils.flop_counter``) and its achieved GFLOP/s set against a large float32 matrix
@@ -104,20 +105,30 @@ def _ddrnet_batch(b=8, s=64):
 
 
 def _ddd_batch(b=2, v=4, h=120, w=160):
+    """Four views ``(b, v, ., h, w)`` of a plane 2 m away, a person-sized block 0.5 m in front of it (the
+    foreground the ``tiny`` loss weights), the cameras 0.2 m apart."""
     T = torch.eye(4).repeat(b, v, 1, 1)
     T[:, :, 0, 3] = torch.linspace(-0.3, 0.3, v)
-    return {"depth": 2.0 + 0.02 * torch.randn(b, v, 1, h, w), "valid": torch.ones(b, v, 1, h, w),
-            "color": torch.rand(b, v, 3, h, w), "camera": torch.tensor([150.0, 150.0, 80.0, 60.0]).expand(b, v, 4).clone(),
-            "T_rig": T}
+    fg = torch.zeros(b, v, 1, h, w)
+    fg[..., h // 4: 3 * h // 4, w // 3: 2 * w // 3] = 1.0
+    depth = 2.0 - 0.5 * fg + 0.02 * torch.randn(b, v, 1, h, w)
+    return {"depth": depth, "valid": torch.ones(b, v, 1, h, w), "foreground": fg,
+            "color": torch.rand(b, v, 3, h, w),
+            "camera": torch.tensor([w * 0.94, w * 0.94, w / 2, h / 2]).expand(b, v, 4).clone(), "T_rig": T}
 
 
 def training(repeats: int) -> dict:
+    from methods.ddd.train import DDDConfig
+    from methods.nn.config import load_config
+
+    ddd_tiny, _ = load_config("tiny", DDDConfig, family="ddd")
     out = {}
     tiny = dict(width=8, refine_width=8)
     for name, net, loss, batch in (
             ("ddrnet", build(ModelConfig(**tiny), refine=False), batch_loss(LossConfig(), d_min=0.2, d_max=6.0), _ddrnet_batch()),
             ("ddrnet_refine", build(ModelConfig(**tiny), refine=True), batch_loss(LossConfig(), d_min=0.2, d_max=6.0), _ddrnet_batch()),
-            ("ddd", ddd_build(DDDModel(width=4)), ddd_loss(DDDLoss()), _ddd_batch())):
+            ("ddd", ddd_build(ddd_tiny.model), ddd_loss(ddd_tiny.loss),
+             _ddd_batch(b=ddd_tiny.optim.batch_size, h=240, w=320))):
         opt = torch.optim.Adam(net.parameters(), lr=1e-3)
 
         def step():

@@ -64,6 +64,19 @@ seed = 0
 """
 
 
+def _held_out_mae_mm(run, folder) -> dict[str, float]:
+    """MAE (mm) against truth of the raw depth and of ``run``'s DDD on a held-out rig session's view 1."""
+    held = AlignedDataset(_rig_session(folder, seed=3, frames=3)[1])
+    methods = {"raw": get("raw"), "ddd": get("ddd", weights=str(run.weights["ddd"]))}
+    err = {name: [] for name in methods}
+    for i in range(len(held)):
+        f = held.frame(i)
+        ok = np.isfinite(f.lq_depth)
+        for name, m in methods.items():
+            err[name].append(np.abs(m.denoise(f.lq_depth, f.lq_color, K) - f.truth)[ok])
+    return {k: 1000 * float(np.concatenate(v).mean()) for k, v in err.items()}
+
+
 def test_ddd_groups_simultaneous_views_trains_and_beats_raw(tmp_path):
     corpus = tmp_path / "corpus"
     train = [AlignedDataset(p) for p in _rig_session(corpus / "a", seed=0, frames=6)]
@@ -77,16 +90,7 @@ def test_ddd_groups_simultaneous_views_trains_and_beats_raw(tmp_path):
     cfg = tmp_path / "cfg.toml"
     cfg.write_text(CONFIG)
     run = train_method("ddd", dataset=manifest, config=cfg, out=tmp_path / "run", device="cpu", progress=False)
-    held = AlignedDataset(_rig_session(tmp_path / "held", seed=3, frames=3)[1])
-    ddd, raw = get("ddd", weights=str(run.weights["ddd"])), get("raw")
-    err = {"raw": [], "ddd": []}
-    for i in range(len(held)):
-        f = held.frame(i)
-        for name, m in (("raw", raw), ("ddd", ddd)):
-            out = m.denoise(f.lq_depth, f.lq_color, K)
-            ok = np.isfinite(f.lq_depth)
-            err[name].append(np.abs(out - f.truth)[ok])
-    mae = {k: 1000 * float(np.concatenate(v).mean()) for k, v in err.items()}
+    mae = _held_out_mae_mm(run, tmp_path / "held")
     assert mae["ddd"] < mae["raw"], mae
 
 
@@ -117,14 +121,5 @@ def test_ddd_tiny_config_trains_and_beats_raw(tmp_path):
     manifest = write_manifest(corpus / "mv.json", name="mv", entries=[manifest_entry(d, root=corpus, split="train")
                                                                          for d in train])
     run = train_method("ddd", dataset=manifest, config="tiny", out=tmp_path / "run", device="cpu", progress=False)
-    held = AlignedDataset(_rig_session(tmp_path / "held", seed=3, frames=3)[1])
-    ddd, raw = get("ddd", weights=str(run.weights["ddd"])), get("raw")
-    err = {"raw": [], "ddd": []}
-    for i in range(len(held)):
-        f = held.frame(i)
-        for name, m in (("raw", raw), ("ddd", ddd)):
-            out = m.denoise(f.lq_depth, f.lq_color, K)
-            ok = np.isfinite(f.lq_depth)
-            err[name].append(np.abs(out - f.truth)[ok])
-    mae = {k: 1000 * float(np.concatenate(v).mean()) for k, v in err.items()}
+    mae = _held_out_mae_mm(run, tmp_path / "held")
     assert mae["ddd"] < mae["raw"], mae

@@ -13,7 +13,7 @@ dataset's ROI as ``bench run`` scores it (:func:`bench.metrics.pixel_errors`), t
   HQ sensor holes, the gap past a surface's last HQ sample, occlusion shadows, the edge rule's mask).
 
 For every pair of methods it prints the mean over frames of the per-frame difference in MSE and
-RMSE, with a 95 % bootstrap interval over frames (2000 resamples), in each of the three scorings.
+RMSE, with a 95 % bootstrap interval over frames (2000 resamples), in each of the four scorings.
 Where the reference and the truth disagree on a pair's order but the truth on the reference's pixels
 agrees with the reference, the reference's values are not to blame: the pixels it leaves out (edges,
 where the HQ sensor cannot say which surface is there) are where the two methods differ. Issue 12's

@@ -48,7 +48,7 @@ def register(subparsers) -> None:
                         "leaves it unobservable: add --allow-unobservable)")
     g.add_argument("--residual-k", type=float, default=6.0, metavar="K",
                    help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
-    g.add_argument("--reference-edges", choices=tuple(RULES), default="strict",
+    g.add_argument("--reference-edges", choices=tuple(RULES), default="strict-fg",
                    help="the reference at depth edges: strict extends no surface past its last HQ sample and masks the "
                         "far side of every reference edge (3 px, counted in aligned.json); mixed does the same and also "
                         "masks what the HQ's time-of-flight mixed pixels hide (fewer large errors, more pixels masked); "

@@ -124,7 +124,7 @@ class AlignOptions:
     board_frames: int = 30
     loop: bool = True
     loop_correct_depth: bool = True
-    reference_edges: str = "strict"
+    reference_edges: str = "strict-fg"
     motion: bool = True
     motion_min_dt_ms: float = 1.0
     motion_model: str = "edges"
@@ -557,6 +557,7 @@ class PairOutput:
     report: Path | None
     kept: int
     example: dict = field(default_factory=dict)
+    background: np.ndarray | None = None  # the ROI's background model (H, W) float32 metres the references used
 
 
 def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOptions, *, force: bool,
@@ -626,7 +627,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
         if opts.report:
             from align.report import write_report
 
-            report = write_report(writer.root, setup, pf, table, example, meta, truth=truth)
+            report = write_report(writer.root, setup, pf, table, example, meta, truth=truth, background=background)
         writer.meta.update(meta)
         writer.close()
     except BaseException:
@@ -635,7 +636,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
     if report is not None:
         report = Path(root) / "report.md"
     return PairOutput(root=Path(root), table=table, depth_residuals=meta["residuals"]["depth"], report=report,
-                      kept=int(kept.size), example=example)
+                      kept=int(kept.size), example=example, background=background)
 
 
 def reference_options(opts: AlignOptions) -> ReferenceOptions:
@@ -739,7 +740,8 @@ class AlignmentResult:
     """What :func:`align_session` produced.
 
     ``time_shift_us`` and ``T_lq_hq`` are those of the (first) LQ sensor; for multi-view rigs
-    ``views`` holds each view's fit and ``rig`` the calibrated rig.
+    ``views`` holds each view's fit and ``rig`` the calibrated rig. ``background``: the ROI's background model
+    ``(H, W)`` float32 metres the (single pair's) references were built with (:mod:`align.roi`).
     """
 
     out: Path
@@ -753,6 +755,7 @@ class AlignmentResult:
     views: dict[str, PairFit] = field(default_factory=dict)
     rig: RigCalibration | None = None
     seconds: float = 0.0
+    background: np.ndarray | None = None
 
     @property
     def observable(self) -> bool:
@@ -790,7 +793,8 @@ def align_session(session, out, *, force: bool = False, lq: str | None = None, h
     po = write_pair_dataset(out, setup, pf, opts, force=force, truth=truth)
     return AlignmentResult(out=out, time_shift_us=int(round(pf.shift.time_shift_us)), T_lq_hq=pf.T_lq_hq,
                            shift=pf.shift, fit=pf.fit, kept=po.kept, dropped=po.table.counts(), report=po.report,
-                           views={lq: pf}, rig=None, seconds=time.perf_counter() - t0)
+                           views={lq: pf}, rig=None, seconds=time.perf_counter() - t0,
+                           background=po.background)
 
 
 #: depth frames per sensor the rig refinement reads (evenly spread over the session)

@@ -155,8 +155,9 @@ class EdgeRule:
     """How the reference treats depth edges.
 
     Attributes:
-        name: a key of :data:`RULES`: ``"strict"`` (the default of the aligned dataset), ``"midpoint"``
-            (the plain warp), ``"mixed"``, ``"strict-fg"``, ``"mixed-fg"``.
+        name: a key of :data:`RULES`: ``"strict"``, ``"midpoint"`` (the plain warp), ``"mixed"``,
+            ``"strict-fg"`` (the default of the aligned dataset: :class:`align.pair_reference.ReferenceOptions`),
+            ``"mixed-fg"``.
         edge_reach: the warp's reach past a surface's last sample, source-grid steps, ``[0, 1)``.
         mask_px: far side of a reference edge masked within this many destination pixels (0: none).
         edge_rel: relative depth jump that makes an edge (0.03 = 3 %).

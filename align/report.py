@@ -178,9 +178,10 @@ def _motion_section(m: dict | None) -> list[str]:
     return lines
 
 
-def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=None) -> Path:
+def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=None, background=None) -> Path:
     """Write ``report.md``, ``report.html`` and ``figures/`` into ``root``; returns the Markdown path.
-    ``truth`` (simulated sessions): the end-to-end error of the loop's section against it."""
+    ``truth`` (simulated sessions): the end-to-end error of the loop's section against it, its references built
+    with ``background`` (the ROI's, as the dataset's)."""
     root = Path(root)
     figs = root / "figures"
     _loss_figure(figs / "loss_vs_shift.png", pf)
@@ -232,7 +233,7 @@ def write_report(root: Path, setup, pf, table, example: dict, meta: dict, truth=
     if getattr(pf, "loop", None) is not None:
         from align.loop.report import loop_section
 
-        lines += loop_section(root, setup, pf, truth, reference=ReferenceOptions.from_meta(meta))
+        lines += loop_section(root, setup, pf, truth, reference=ReferenceOptions.from_meta(meta), background=background)
     md = "\n".join(lines)
     path = root / "report.md"
     path.write_text(md)

@@ -70,13 +70,15 @@ def _sig(lst, name):
     return next((s for s in lst if s.name == name), None)
 
 
-def end_to_end(setup, pf, loop, truth, *, pairs: int = 12, reference: ReferenceOptions | None = None) -> dict | None:
+def end_to_end(setup, pf, loop, truth, *, pairs: int = 12, reference: ReferenceOptions | None = None,
+               background=None) -> dict | None:
     """Warped HQ depth against the LQ truth (MAE, RMSE, mm) with the base geometry and with the loop's, and
     raw LQ depth against truth before/after the loop's depth correction, over ``pairs`` pairs.
 
     The references are built as ``align`` builds the aligned dataset's (:mod:`align.pair_reference`:
     the warp, carried to the LQ instant, the edge rule; ``reference``: the options the dataset was
-    written with, ``None``: ``align``'s defaults), so "after" is the error of the references written.
+    written with, ``None``: ``align``'s defaults; ``background``: the ROI's background model ``(H, W)`` float32 metres the
+    dataset's rule used, for the rules that mask only what the ROI scores), so "after" is the error of the references written.
     Per geometry: ``reference_mae_mm``, ``reference_rmse_mm``, ``lq_mae_mm``, ``pairs`` and ``frames``
     (``(hq_frame, lq_frame)`` of each pair used) with ``frame_mae_mm``, the reference's MAE on each."""
     if truth is None:
@@ -93,7 +95,7 @@ def end_to_end(setup, pf, loop, truth, *, pairs: int = 12, reference: ReferenceO
         ok = np.flatnonzero(np.abs(dt) < setup.lq_period_us / 2)
         ok = ok[~np.isin(lq_of[ok], loop.lq_duplicates)] if key == "after" else ok
         pick = ok[np.unique(np.linspace(0, ok.size - 1, min(pairs, ok.size)).round().astype(int))]
-        refs = pair_references(setup, T_lq_hq=T, K_lq=K, options=reference)
+        refs = pair_references(setup, T_lq_hq=T, K_lq=K, options=reference, background=background)
         errs, raw = [], []
         for i in pick:
             fl = int(setup.f_lq[lq_of[i]])
@@ -115,9 +117,10 @@ def end_to_end(setup, pf, loop, truth, *, pairs: int = 12, reference: ReferenceO
     return out
 
 
-def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptions | None = None) -> list[str]:
+def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptions | None = None,
+                 background=None) -> list[str]:
     """Markdown lines (and figures under ``root/figures``) for the loop of ``pf.loop``; ``reference``: how the
-    dataset's references were built (:func:`end_to_end`)."""
+    dataset's references were built, ``background`` the ROI's (:func:`end_to_end`)."""
     loop = pf.loop
     fl, dl = loop.features, loop.depth
     figs = Path(root) / "figures"
@@ -158,7 +161,7 @@ def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptio
         lines.append(f"| LQ - warped HQ depth, median abs (%) | {100 * dl.heldout_before['median_abs']:.3f} | "
                      f"{100 * dl.heldout_after['median_abs']:.3f} |")
     lines.append("")
-    e2e = end_to_end(setup, pf, loop, truth, reference=reference)
+    e2e = end_to_end(setup, pf, loop, truth, reference=reference, background=background)
     if e2e:
         ro = reference or ReferenceOptions()
         how = f"edge rule `{ro.reference_edges}`" + (", carried to the LQ instant" if ro.motion else "")

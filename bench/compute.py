@@ -24,6 +24,7 @@ import pandas as pd
 
 from align.dataset import AlignedDataset, AlignedFrame
 from bench.errors import BenchError
+from bench.masks import truth_strata
 from bench.metrics import BINNED, UNITS, MetricConfig, fit_reference_planes, frame_metrics, moving_mask
 from bench.results import SCHEMA_VERSION
 from methods.base import FrameInput, MethodNeeds
@@ -149,8 +150,8 @@ class _TaskScorer:
     def hold(self, fr: AlignedFrame, waiting: int) -> _Scoring:
         cfg = self.task.config
         refs = {"hq": fr.reference}
-        if fr.truth is not None:
-            refs["truth"] = fr.truth
+        if fr.truth is not None:   # the truth on the reference's pixels, and on the ROI pixels without one
+            refs.update(truth_strata(fr.truth, fr.reference))
         planes = {name: fit_reference_planes(ref, self.K, roi=fr.roi, radius_m=cfg.radius_m,
                                              min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio,
                                              threads=self.threads)

@@ -8,6 +8,12 @@ is derived data: it is replaced on every run or ``depthbench bench report``.
 Summary numbers are means over frames of the per-frame metric (every frame of every dataset
 weighs the same) with 95 % percentile bootstrap intervals: frames are resampled with replacement
 (2000 resamples, seed 0), the same resamples for every method and metric (paired).
+
+Against the simulator's truth the pixels are split by the HQ reference (:func:`bench.masks.truth_strata`):
+the truth summary scores the same pixels as the HQ summary (like with like), and the ROI pixels without
+a reference ("silhouettes / no reference") are their own stratum, scored against the truth only, with
+their share of the ROI. :func:`ranking_check` says whether the HQ reference orders the methods as the
+truth does on those shared pixels (MSE and RMSE), with paired intervals of every pair's difference.
 """
 from __future__ import annotations
 
@@ -62,6 +68,10 @@ SEQUENCE_METRICS = ("rmse_mm", "mae_mm", "plane_fit_rmse_mm", "fill_rate")
 #: Depth bins holding less than this share of a method's scored pixels are left out of the plots.
 MIN_BIN_SHARE = 0.001
 HQ_SENSOR = "hq_sensor"
+#: the truth stratum of the ROI pixels without an HQ reference (:func:`bench.masks.truth_strata`)
+NOREF = "truth_noref"
+#: the metrics the ranking check compares the two scorings on
+RANKING_METRICS = {"mse_mm2": "MSE", "rmse_mm": "RMSE"}
 
 
 @dataclass
@@ -247,7 +257,8 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
     wide = frame_values(df, reference)
     s = bootstrap_summary(wide, n_boot=n_boot, seed=seed)
     n_frames = len(wide)
-    doc.heading("Summary against the simulator's truth" if truth else "Summary against the HQ reference")
+    doc.heading("Summary against the simulator's truth, on the HQ reference's pixels" if truth
+                else "Summary against the HQ reference")
     header = ["metric"] + list(labels.values())
     rows = [[name] + [_cell(s, metric, k, n_total=n_frames) for k in labels] for metric, name in SUMMARY_METRICS.items()]
     classes = [""] * len(rows)
@@ -268,14 +279,117 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
              "the first frame has none).",
              cls="note")
     if truth:
-        doc.para("The **HQ sensor** column scores the warped HQ depth itself against the truth: the part of every "
-                 "method's error against the HQ reference that is the reference's own error.", cls="note")
+        doc.para("Like with like: these columns score the truth on exactly the pixels the HQ summary scores (ROI "
+                 "pixels where the HQ reference has depth). The ROI pixels without a reference are scored separately "
+                 "below (\"Silhouettes / no reference\"). The **HQ sensor** column scores the warped HQ depth itself "
+                 "against the truth: the part of every method's error against the HQ reference that is the "
+                 "reference's own error.", cls="note")
     else:
         doc.para(PUBLISHED_NOTE, cls="note")
     png = plots.summary_bars(s, labels, metrics={"rmse_mm": "RMSE (mm)", "mae_mm": "MAE (mm)",
                                                  "plane_fit_rmse_mm": "plane-fit RMSE (mm)"},
                              title=f"against the {'truth' if truth else 'HQ reference'} (95 % bootstrap intervals)")
     doc.figure(f"summary_{reference}.png", png, f"Summary against the {'truth' if truth else 'HQ reference'}")
+
+
+def noref_share(df: pd.DataFrame) -> pd.Series:
+    """Per frame (index ``(dataset_checksum, frame)``): the share of the ROI's truth pixels that have no HQ
+    reference, ``n_reference(truth_noref) / (n_reference(truth) + n_reference(truth_noref))`` (``n_reference`` is
+    the same for every method; the first method key's rows are read, not the HQ sensor's)."""
+    rows = df[df["reference"].isin(["truth", NOREF]) & df["bin_lo_m"].isna() & (df["metric"] == "n_reference")
+              & (df["method"] != HQ_SENSOR)]
+    if rows.empty:
+        return pd.Series(dtype=np.float64)
+    first = sorted(rows["method_key"].unique())[0]
+    v = rows[rows["method_key"] == first].set_index(["dataset_checksum", "frame", "reference"])["value"]
+    w = v[~v.index.duplicated()].unstack("reference").reindex(columns=["truth", NOREF])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (w[NOREF] / (w["truth"] + w[NOREF])).sort_index()
+
+
+def _noref_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> None:
+    """The ROI pixels without an HQ reference, scored against the truth only."""
+    part = df[df["reference"] == NOREF]
+    labels = method_labels(part)
+    if not labels:
+        return
+    wide = frame_values(df, NOREF)
+    s = bootstrap_summary(wide, n_boot=n_boot, seed=seed)
+    share = noref_share(df)
+    sh = bootstrap_summary(share.to_frame("share"), n_boot=n_boot, seed=seed).loc["share"]
+    doc.heading("Silhouettes / no reference: ROI pixels without an HQ reference, against the truth only")
+    metrics = {k: v for k, v in SUMMARY_METRICS.items() if k in ("mse_mm2", "rmse_mm", "mae_mm", "fill_rate")}
+    rows = [[name] + [_cell(s, metric, k, n_total=len(wide)) for k in labels] for metric, name in metrics.items()]
+    doc.table(["metric"] + list(labels.values()), rows)
+    doc.para(f"**The HQ reference scores none of these pixels**: they are the ROI pixels where it has no depth "
+             f"(HQ sensor holes and mixed pixels along silhouettes, the gap past a surface's last HQ sample, "
+             f"occlusion shadows, the edge rule's mask), {100 * sh['mean']:.1f} % [{100 * sh['lo']:.1f}, "
+             f"{100 * sh['hi']:.1f}] of the ROI's truth pixels (mean over {len(share)} frames, 95 % bootstrap). Only "
+             "the simulator's truth scores them, here; neither summary above includes them. Their errors are those "
+             "of depth edges, where the methods differ most.", cls="note")
+
+
+def ranking_check(df: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0) -> dict:
+    """Does the HQ reference rank the methods as the truth does on the same pixels?
+
+    On the frames with truth, per metric of :data:`RANKING_METRICS`: the methods (not the HQ sensor) ordered by
+    their mean over frames against the HQ reference (``"hq"``) and against the truth on the reference's pixels
+    (``"truth"``), whether the two orders are equal, and for every pair ``(a, b)`` the per-frame difference
+    ``a - b`` (mean and 95 % paired bootstrap interval over frames) in each scoring and against the truth on the
+    pixels without a reference (``"truth_noref"``). Returns ``{metric: {"order": {scoring: [key, ...]},
+    "same": bool, "pairs": [(a, b, {scoring: (mean, lo, hi)})]}}``; empty without truth rows."""
+    keys = [k for k in method_labels(df[df["reference"] == "truth"]) if k in set(df.loc[df["reference"] == "hq", "method_key"])]
+    if len(keys) < 2:
+        return {}
+    wides = {ref: frame_values(df, ref) for ref in ("hq", "truth", NOREF)}
+    frames = wides["truth"].index
+    out = {}
+    for metric in RANKING_METRICS:
+        cols = {ref: w.reindex(index=frames, columns=[(metric, k) for k in keys]) for ref, w in wides.items()}
+        order = {ref: [k for _, k in sorted(zip(cols[ref].mean().to_numpy(), keys), key=lambda t: (np.nan_to_num(t[0], nan=np.inf), t[1]))]
+                 for ref in ("hq", "truth")}
+        diffs = {}
+        for ref, c in cols.items():
+            d = pd.DataFrame({(a, b): c[(metric, a)].to_numpy() - c[(metric, b)].to_numpy()
+                              for i, a in enumerate(keys) for b in keys[i + 1:]}, index=frames)
+            diffs[ref] = bootstrap_summary(d, n_boot=n_boot, seed=seed)
+        pairs = [(a, b, {ref: tuple(float(diffs[ref].loc[(a, b), c]) for c in ("mean", "lo", "hi")) for ref in diffs})
+                 for i, a in enumerate(keys) for b in keys[i + 1:]]
+        out[metric] = {"order": order, "same": order["hq"] == order["truth"], "pairs": pairs}
+    return out
+
+
+def _ranking_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> None:
+    check = ranking_check(df, n_boot=n_boot, seed=seed)
+    if not check:
+        return
+    labels = method_labels(df)
+    doc.heading("Does the HQ reference rank the methods as the truth does?")
+    lines = []
+    for metric, c in check.items():
+        o = {ref: " < ".join(labels[k] for k in c["order"][ref]) for ref in ("hq", "truth")}
+        verdict = "**yes**, the same order" if c["same"] else "**no**, the orders differ"
+        lines.append(f"{RANKING_METRICS[metric]}: {verdict} (against the HQ reference: {o['hq']}; against the truth on "
+                     f"the reference's pixels: {o['truth']}).")
+    doc.para(" ".join(lines))
+
+    def cell(t):
+        return "–" if not np.isfinite(t[0]) else f"{t[0]:+.2f} [{t[1]:+.2f}, {t[2]:+.2f}]"
+
+    rows = []
+    for metric, c in check.items():
+        for a, b, d in c["pairs"]:
+            hq, tr = d["hq"][0], d["truth"][0]
+            agree = "yes" if np.sign(hq) == np.sign(tr) else "**no**"
+            rows.append([f"{labels[a]} − {labels[b]}, {RANKING_METRICS[metric]}", cell(d["hq"]), cell(d["truth"]), agree,
+                         cell(d[NOREF])])
+    doc.table(["pair, metric (difference a − b; < 0: a better)", "against the HQ reference",
+               "against the truth, reference's pixels", "same sign", "against the truth, silhouettes / no reference"],
+              rows)
+    doc.para(f"Mean over the frames with truth of the per-frame difference, with its 95 % paired bootstrap interval "
+             f"({n_boot} resamples of the frames, seed {seed}). The first two columns score the same pixels; the last "
+             "scores the ROI pixels the reference leaves out, where only the truth can say which method is better.",
+             cls="note")
 
 
 def _sequence_section(doc: _Doc, df: pd.DataFrame) -> None:
@@ -460,6 +574,8 @@ def build_report(df: pd.DataFrame, *, root: Path, config: dict | None, n_boot: i
     _summary_section(doc, df, "hq", n_boot=n_boot, seed=seed)
     if (df["reference"] == "truth").any():
         _summary_section(doc, df, "truth", n_boot=n_boot, seed=seed)
+        _noref_section(doc, df, n_boot=n_boot, seed=seed)
+        _ranking_section(doc, df, n_boot=n_boot, seed=seed)
     from bench.table_i import table_i_section
 
     table_i_section(doc, df, n_boot=n_boot, seed=seed)

@@ -30,7 +30,7 @@ from data_manifests import schema_problem
 from depthbench.fsutil import atomic_output, atomic_write_json, read_json, sha256_file
 
 FORMAT = "depthbench.results"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2   # 2: "truth" scored on the reference's pixels, "truth_noref" the rest of the ROI
 MANIFEST = "results.json"
 TABLE = "results.parquet"
 CACHE = "cache"
@@ -46,7 +46,8 @@ SCHEMA = pa.schema([
     ("dataset_checksum", pa.string()),  # aligned.json dataset_checksum
     ("sequence", pa.string()),          # sequence name for per-sequence tables
     ("frame", pa.int64()),              # frame index in the aligned dataset
-    ("reference", pa.string()),         # "hq" (warped HQ depth) or "truth" (simulated noise-free depth)
+    ("reference", pa.string()),         # "hq" (warped HQ depth), "truth" (simulated noise-free depth on the
+                                        # hq reference's pixels) or "truth_noref" (on the ROI pixels without one)
     ("metric", pa.string()),            # see bench.metrics.UNITS
     ("unit", pa.string()),              # mm, mm^2, ratio, count, deg
     ("bin_lo_m", pa.float64()),         # reference-depth bin [lo, hi) in metres; NaN: the whole frame

@@ -94,16 +94,16 @@ def test_other_schema_version_via_cli(datasets, tmp_path, main):
     assert cli("bench", "run", "--data", a, "--methods", "raw", "--out", out, "--radius-mm", "40",
                "--no-report").returncode == 0
     meta = json.loads((out / R.MANIFEST).read_text())
-    meta["schema_version"] = 2
+    meta["schema_version"] = 99
     (out / R.MANIFEST).write_text(json.dumps(meta))
     r = cli("bench", "run", "--data", a, "--methods", "raw", "--out", out, "--radius-mm", "40")
-    assert_one_line_error(r, "results.json", "schema version 2", "reads version 1")
+    assert_one_line_error(r, "results.json", "schema version 99", f"reads version {R.SCHEMA_VERSION}")
     import pyarrow.parquet as pq
     t = pq.read_table(out / R.TABLE)
     pq.write_table(t.replace_schema_metadata({b"depthbench.format": b"depthbench.results",
-                                              b"depthbench.schema_version": b"2"}), out / R.TABLE)
+                                              b"depthbench.schema_version": b"99"}), out / R.TABLE)
     r = cli("bench", "report", out)
-    assert_one_line_error(r, "results.parquet", "schema version 2")
+    assert_one_line_error(r, "results.parquet", "schema version 99")
     r = cli("bench", "run", "--data", a, "--methods", "raw", "--out", out, "--radius-mm", "40", "--force",
             "--no-report")
     assert r.returncode == 0, r.stderr

@@ -45,7 +45,7 @@ def test_table_has_one_row_per_method_dataset_frame_reference_metric(datasets, t
     t = res.table
     assert tuple(t.columns) == R.COLUMNS
     assert set(t["dataset"]) == {"A", "B"} and set(t["sequence"]) == {"seq-a", "seq-b"}
-    assert set(t["reference"]) == {"hq", "truth"}
+    assert set(t["reference"]) == {"hq", "truth", "truth_noref"}
     assert set(t.loc[t["dataset"] == "B", "reference"]) == {"hq"}     # no truth in B
     assert set(t.loc[t["method"] == "hq_sensor", "reference"]) == {"truth"}
     frame_rows = t[t["bin_lo_m"].isna()]
@@ -152,7 +152,7 @@ def test_other_schema_version_is_refused(datasets, tmp_path):
     table = pa.Table.from_pandas(old, preserve_index=False).replace_schema_metadata(
         {b"depthbench.format": b"depthbench.results", b"depthbench.schema_version": b"0"})
     pq.write_table(table, out / R.TABLE)
-    with pytest.raises(R.SchemaVersionError, match="results schema version 0, this depthbench reads version 1"):
+    with pytest.raises(R.SchemaVersionError, match=f"results schema version 0, this depthbench reads version {R.SCHEMA_VERSION}"):
         R.load_results(out)
     # --force replaces the folder
     again = run([a], ["raw"], out, jobs=1, force=True)

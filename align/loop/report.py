@@ -121,9 +121,8 @@ def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptio
                  background=None) -> list[str]:
     """Markdown lines (and figures under ``root/figures``) for the loop of ``pf.loop``; ``reference``: how the
     dataset's references were built, ``background`` the ROI's (:func:`end_to_end`)."""
-    loop = pf.loop
+    loop, figs = pf.loop, Path(root) / "figures"
     fl, dl = loop.features, loop.depth
-    figs = Path(root) / "figures"
     before = list(fl.before) + (list(dl.before) if dl else [])
     after = list(fl.after) + (list(dl.after) if dl else [])
     effects = loop.effects_json()

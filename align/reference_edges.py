@@ -145,9 +145,16 @@ from align.mixed_pixels import mixed_samples, nearest_around
 from align.roi import in_front
 
 #: the named rules: (edge reach of the warp, mask width in destination pixels, HQ mixed samples as occluders,
-#: the band only where the reference is scored)
-RULES = {"strict": (0.0, 3, False, False), "midpoint": (0.5, 0, False, False), "mixed": (0.0, 3, True, False),
-         "strict-fg": (0.0, 3, False, True), "mixed-fg": (0.0, 3, True, True)}
+#: the band only where the reference is scored, every HQ sample's footprint as an occluder)
+RULES = {"strict": (0.0, 3, False, False, False), "midpoint": (0.5, 0, False, False, False),
+         "mixed": (0.0, 3, True, False, False), "strict-fg": (0.0, 3, False, True, False),
+         "mixed-fg": (0.0, 3, True, True, False), "footprint-fg": (0.0, 3, False, True, True)}
+#: the footprint occluders' reach, in HQ pixel footprints (:func:`footprint_occluders`), and the depth step
+#: (relative) behind an occluder that hides a reference pixel
+OCCLUDER_REACH = 2.5
+OCCLUDER_REL = 0.1
+#: the largest splat offset of an occluder, destination pixels
+MAX_OCCLUDER_PX = 3
 
 
 @dataclass(frozen=True)
@@ -170,6 +177,9 @@ class EdgeRule:
             it; a pixel the reference puts on the background is outside the ROI whatever it holds, and
             masking it would only hand it to the LQ depth, which decides the ROI where the reference
             has none (``"strict-fg"``, ``"mixed-fg"``; the module docstring's last table).
+        occluders: every finite HQ sample, those the warp drops at edges (mixes, isolated samples) included,
+            hides what lies behind its footprint (:func:`footprint_occluders`, ``OCCLUDER_REACH`` footprints
+            wide): reference pixels more than ``OCCLUDER_REL`` behind it are masked (``"footprint-fg"``).
     """
 
     name: str = "strict"
@@ -179,14 +189,16 @@ class EdgeRule:
     mixed: bool = False
     k_sigma: float = 3.0
     scored_only: bool = False
+    occluders: bool = False
 
     @classmethod
     def named(cls, name: str, *, edge_rel: float = 0.03) -> "EdgeRule":
         if name not in RULES:
             raise OptionError(f"reference edge rule must be one of {', '.join(RULES)}, got {name!r}",
                               option="reference_edges")
-        reach, mask_px, mixed, scored_only = RULES[name]
-        return cls(name=name, edge_reach=reach, mask_px=mask_px, edge_rel=edge_rel, mixed=mixed, scored_only=scored_only)
+        reach, mask_px, mixed, scored_only, occluders = RULES[name]
+        return cls(name=name, edge_reach=reach, mask_px=mask_px, edge_rel=edge_rel, mixed=mixed, scored_only=scored_only,
+                   occluders=occluders)
 
     def warp(self, warper, hq: np.ndarray, *, motion=None,
              background: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
@@ -203,7 +215,19 @@ class EdgeRule:
         none, so that the count compares with the other rules'. With :attr:`scored_only` and a
         ``background`` (the ROI's, on the destination image), a pixel whose value (the reference's, else
         the plain warp's) is not in front of the background keeps it.
+
+        :attr:`occluders` (``"footprint-fg"``): the plain warp, with the pixels more than ``OCCLUDER_REL`` behind
+        :func:`footprint_occluders` of the same frame masked (with :attr:`scored_only` and a ``background``, only
+        those in front of it); ``mask``: those pixels.
         """
+        if self.occluders:
+            ref = warper(hq, motion=motion)
+            occ = footprint_occluders(warper, hq, motion=motion)
+            with np.errstate(invalid="ignore"):
+                hide = ref - occ > OCCLUDER_REL * occ
+            if self.scored_only and background is not None:
+                hide &= in_front(ref, background)
+            return np.where(hide, np.float32(np.nan), ref).astype(np.float32, copy=False), hide
         if not self.mixed:
             return warper(hq, motion=motion), None
         hq = np.asarray(hq, np.float32)
@@ -238,7 +262,58 @@ class EdgeRule:
     def to_dict(self) -> dict:
         d = {"rule": self.name, "edge_reach": self.edge_reach, "mask_px": self.mask_px, "edge_rel": self.edge_rel}
         d = {**d, "scored_only": True} if self.scored_only else d
+        d = {**d, "occluders": {"reach_footprints": OCCLUDER_REACH, "rel": OCCLUDER_REL}} if self.occluders else d
         return {**d, "mixed_samples": {"k_sigma": self.k_sigma}} if self.mixed else d
+
+
+def _near_an_edge(d: np.ndarray, *, edge_rel: float) -> np.ndarray:
+    """``(h, w)`` bool: samples within one pixel (3x3) of a sample that has a 3x3 neighbour missing or farther by
+    more than ``edge_rel``."""
+    k = np.ones((3, 3), np.uint8)
+    far = cv2.dilate(np.where(np.isfinite(d), d, np.inf).astype(np.float32), k, borderType=cv2.BORDER_REPLICATE)
+    with np.errstate(invalid="ignore"):
+        edge = np.isfinite(d) & ~(far - d <= edge_rel * d)
+    return cv2.dilate(edge.astype(np.uint8), k).astype(bool)
+
+
+def footprint_occluders(warper, hq: np.ndarray, *, reach: float = OCCLUDER_REACH, motion=None,
+                        edges_only: bool = True) -> np.ndarray:
+    """The nearest depth ``(H, W)`` float32 metres (``inf``: none) any HQ sample of ``hq`` (``(h, w)`` float32
+    metres, NaN = none) puts on each destination pixel through its footprint, ``reach`` footprints wide.
+
+    Every finite sample counts, also those the warp drops (mixes and isolated samples at edges, which the warp
+    cannot link into a surface): a sample is evidence that something at most that far lies within its pixel.
+    The sample projects to ``(u, v)`` at depth ``z`` (:meth:`align.warp.DepthWarper.forward_map`, with
+    ``motion`` as :meth:`~align.warp.DepthWarper.warp`'s) and covers the destination pixels within ``R``
+    (Chebyshev) of the pixel nearest to ``(u, v)``, ``R = round(0.5 * reach * fx_dst / fx_src)`` (at least 1, at
+    most ``MAX_OCCLUDER_PX``): a z-buffer of the samples at their nearest pixels, then a ``(2R+1)^2`` minimum.
+    ``edges_only`` (the default): only the samples within one pixel of an HQ depth edge or hole (a 3x3
+    neighbour missing or farther by more than the warper's ``edge_rel``) splat; inside a surface the warp's own
+    z-buffer already hides what lies behind it.
+
+    Example:
+        >>> from align.warp import DepthWarper
+        >>> from capture.camera import Intrinsics, Transform
+        >>> K = Intrinsics(8, 6, 10.0, 10.0, 3.5, 2.5)
+        >>> hq = np.full((6, 8), 2.0, np.float32); hq[2, 3] = 1.0
+        >>> occ = footprint_occluders(DepthWarper(K, K, Transform.identity()), hq, reach=2.0, edges_only=False)
+        >>> float(occ[2, 3]), float(occ[3, 4]), float(occ[2, 5]), float(occ[0, 0])
+        (1.0, 1.0, 2.0, 2.0)
+    """
+    u, v, w, valid = warper.forward_map(hq, motion=motion)
+    d = np.asarray(hq, np.float32)
+    with np.errstate(invalid="ignore"):
+        ok = valid & np.isfinite(u) & np.isfinite(v) & (w > 0) & np.isfinite(d) & (d > 0)
+    if edges_only:
+        ok &= _near_an_edge(d, edge_rel=warper.edge_rel)
+    K_src, K_dst = warper.K_src, warper.K_dst
+    cu, cv, z = np.round(u[ok]).astype(np.intp), np.round(v[ok]).astype(np.intp), np.float32(1) / w[ok]
+    inside = (cu >= 0) & (cv >= 0) & (cu < K_dst.width) & (cv < K_dst.height)
+    points = np.full(K_dst.shape, np.inf, np.float32)
+    np.minimum.at(points, (cv[inside], cu[inside]), z[inside])
+    R = int(min(max(round(0.5 * reach * K_dst.fx / K_src.fx), 1), MAX_OCCLUDER_PX))
+    return cv2.erode(points, np.ones((2 * R + 1, 2 * R + 1), np.uint8), borderType=cv2.BORDER_CONSTANT,
+                     borderValue=np.inf)
 
 
 def occluded_side(depth: np.ndarray, *, radius_px: int = 2, edge_rel: float = 0.03) -> np.ndarray:

@@ -132,16 +132,20 @@ class DepthWarper:
         return (max(0, rows[0] - 1), min(H, rows[-1] + 2), max(0, cols[0] - 1), min(W, cols[-1] + 2))
 
     # ------------------------------------------------------------------ forward map
-    def forward_map(self, depth: np.ndarray):
+    def forward_map(self, depth: np.ndarray, *, motion=None):
         """Eq. 30 for every source pixel: destination ``u, v`` (px) and inverse depth ``w`` (1/m).
 
         Returns ``(u, v, w, valid)``, each ``(H_src, W_src)``; outside the source crop (pixels
         that cannot reach the destination image) ``u, v`` are NaN and ``w`` is 0; invalid points (no
-        depth, behind the destination camera) have ``valid = False`` and meaningless values.
+        depth, behind the destination camera) have ``valid = False`` and meaningless values. ``motion``:
+        as :meth:`warp`'s (the points moved first), ``None``: not moved.
         """
         d = self._check_shape(depth)
         r0, r1, c0, c1 = self.crop
-        u, v, w, valid = self._forward(np.ascontiguousarray(d[r0:r1, c0:c1]).ravel())
+        if motion is not None and not isinstance(motion, CropMotion):
+            motion = self.crop_motion(motion)
+        u, v, w, valid = self._forward(np.ascontiguousarray(d[r0:r1, c0:c1]).ravel(), None,
+                                       None if motion is None else motion.dst)
         out = []
         for arr, fill in ((u, np.nan), (v, np.nan), (w, 0.0), (valid, False)):
             full = np.full(d.shape, fill, arr.dtype)

@@ -13,8 +13,8 @@ Over one frame period every point moves at constant velocity (first order in tim
 where ``P_x`` is the same point in frame ``x``. :class:`SceneFlow` finds ``P_x - P`` per sample:
 
 1. each depth sample of ``o`` is projected into its own HQ colour image (``T_color_depth``);
-2. the dense optical flow from ``o``'s colour image to ``x``'s (OpenCV's DIS, ultrafast preset, on
-   grey images reduced to ``flow_scale``) carries it to its colour position in ``x``; the same
+2. the dense optical flow from ``o``'s colour image to ``x``'s (OpenCV's DIS, ultrafast preset at its finest
+   level ``FLOW_FINEST``, on grey images reduced to ``flow_scale``) carries it to its colour position in ``x``; the same
    displacement, scaled by the focal-length ratio, gives its depth pixel ``q`` in ``x`` (the
    colour-to-depth parallax changes with the point's depth change only, millimetres);
 3. ``P_x`` is ``x``'s sample at ``q``, unprojected. It is trusted when its depth is within
@@ -41,7 +41,8 @@ cost) did not lower the reference's error (3.39 4.14 3.03 mm on seeds 1-3).
 find a third of the motion or less (seed 5's HQ frame 8: endpoint error 8.3 px of 12.6; no gain puts it
 back). Such a pair shows itself: its moving samples land on their own surface less often (0.60-0.73 of
 them at the best gain, against 0.77-0.87 elsewhere). Below ``FALLBACK_LANDED`` the pair's flow is found
-again at DIS's medium preset (22 ms instead of 2.5 ms; 3 of 30 pairs on seeds 1-3).
+again at DIS's medium preset without its variational refinement (13 ms instead of 2.2 ms; 3 of 30 pairs on
+seeds 1-3), decided right after the gain vote (the failed flow's step 3, fill and expansion are not computed).
 
 A trusted sample whose flow is under ``STILL_PX`` and whose depth changes by under ``STILL_DZ_M``
 stands still: motion 0 (moved by ``frac`` of under half a pixel the warp does not change; its depth
@@ -75,15 +76,24 @@ stride 2 bilinear, max jump 0.08 m (s. 7)   3.12 4.18 3.55        6.35 6.61 2.84
                                                                   4.50 3.05 4.27
 + gain, same-surface fill, still, settle,   2.95 3.45 2.91        2.98 3.79 2.65 / 2.76 2.48 4.05 /
 finer flow where it fails (session 8)                             3.68 2.74 2.92
+quarter-size flow, finer flow without       2.84 3.46 2.99        3.28 3.58 2.76 / 2.76 2.57 3.93 /
+refinement, faster kernels (session 9)                            3.68 2.75 3.13
 synchronous frames                          (2.2 2.22 2.08)       (2.01 2.21 2.04 / 2.07 2.09 2.17 /
                                                                   2.47 2.20 2.02)
 ==========================================  ====================  ================================
 
-Every held-out seed lands within 2 mm of synchronous frames (gaps 0.4-1.9 mm; 95 % bootstrap intervals
-over pairs reach above 2 mm on seeds 5, 9 and 10); over seeds 4-12 the MAE falls from 4.29 to 3.08 mm
-against session 7's, by 1.22 mm [0.64, 1.92]. CPU throughput 0.34 of the plain warp (0.43 without the
-finer flow, which 4 of 30 consecutive pairs of seed 1 take at 20-28 ms each): under the 0.5 issue 12
-asks. Tried and dropped: optical flow on the rectangle of the colour images that changed only (DIS on
+Every held-out seed lands within 2 mm of synchronous frames (session 8: gaps 0.4-1.9 mm, 95 % bootstrap
+intervals over pairs reaching above 2 mm on seeds 5, 9 and 10; session 9: 0.5-1.75 mm, above 2 mm on seeds 4,
+5, 9, 10 and 12); over seeds 4-12 the MAE falls from 4.29 to 3.08 mm
+against session 7's, by 1.22 mm [0.64, 1.92]. Session 9 made it cheaper at the same error (seeds 4-12 pooled:
++0.05 mm [-0.02, +0.13] against session 8's): the flow on the quarter-size grey image at DIS's finest level 1
+(the same 1/8 of the colour image as ultrafast's own level 2 on the half-size one; the image pyramid and the
+settling cost a quarter, and the finer flow is needed on 1 of 30 consecutive pairs of seed 1 instead of 4),
+the finer flow without its variational refinement and decided before step 3, and the compiled passes
+rewritten (steps 1-3 and the fill: 3.7 -> 2.4 ms per pair). CPU throughput 0.46 of the plain warp (session 8:
+0.34): still under the 0.5 issue 12 asks. Per pair (ms CPU, 30 consecutive pairs of seed 1): the moved warp
+8.7 (the plain warp's cost), the expansion 2.8, DIS 2.2 (+0.45 for the finer flow's share), the fill 1.0,
+steps 1-2 1.0, the gain vote 0.7, step 3 0.7, the grey images 0.6, settling 0.4. Tried and dropped: optical flow on the rectangle of the colour images that changed only (DIS on
 the smaller image: +0.3 mm MAE on seeds 2 and 3; for the finer flow, no faster where people and
 balloons spread over 75-80 % of the image); still tiles skipping the flow (the inside of a uniform
 moving surface does not change); a finer DIS for every pair (finest scale 1 / patch stride 6: no lower
@@ -99,7 +109,11 @@ from align.errors import WarpInputError
 from align.warp import CropMotion
 
 #: grey images for the flow are the HQ colour images reduced by this factor
-DEFAULT_FLOW_SCALE = 0.5
+DEFAULT_FLOW_SCALE = 0.25
+#: DIS's finest pyramid level on them (:class:`ColorFlow`'s ``finest``): ultrafast's own 2 on the half-size image
+#: of session 8 computed the flow at 1/8 of the colour image as 1 does on the quarter-size one, which costs less
+#: around it (the pyramid, the settling: session 9)
+FLOW_FINEST = 1
 #: a flow target whose depth differs from the point's by more than this is another surface (m)
 DEFAULT_MAX_JUMP_M = 0.08
 #: untrusted samples take the mean motion of trusted ones of their own surface within this many depth pixels
@@ -111,6 +125,10 @@ DEFAULT_GAINS = (1.0, 1.1, 1.2, 1.35, 1.5, 1.7)
 #: the flow again at DIS's ``FALLBACK_PRESET``
 FALLBACK_LANDED = 0.75
 FALLBACK_PRESET = cv2.DISOPTICAL_FLOW_PRESET_MEDIUM
+#: ... at its own finest level (1 on the half-size image: 0 on the quarter-size one), without its variational
+#: refinement (14 instead of 22 ms; as accurate on seeds 1-3, 5 and 9, session 9)
+FALLBACK_FINEST = 0
+FALLBACK_REFINEMENT = 0
 #: :func:`settle_flow`: the flow is 0 where the grey images changed by under this many grey levels (5x5
 #: mean) on texture over this (5x5 mean of the absolute Sobel gradients)
 SETTLE_CHANGE = 3
@@ -129,7 +147,9 @@ def flow_image(color: np.ndarray, *, scale: float = DEFAULT_FLOW_SCALE) -> np.nd
     """The grey image the flow runs on: ``color`` ``(H, W, 3)`` RGB uint8 (or ``(H, W)`` grey) reduced
     by ``scale``, uint8."""
     g = color if color.ndim == 2 else cv2.cvtColor(np.ascontiguousarray(color), cv2.COLOR_RGB2GRAY)
-    if scale == 1:
+    while scale <= 0.5 and g.shape[0] % 2 == 0 and g.shape[1] % 2 == 0 and (1 / scale).is_integer():  # halvings:
+        g, scale = cv2.resize(g, (g.shape[1] // 2, g.shape[0] // 2), interpolation=cv2.INTER_AREA), scale * 2  # OpenCV's
+    if scale == 1:  # fast 2x2 mean (a 4x4 mean in one call costs 0.3 ms more on 960x540)
         return np.ascontiguousarray(g, np.uint8)
     return cv2.resize(g, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
 
@@ -155,19 +175,28 @@ def settle_flow(flow: np.ndarray, grey_o: np.ndarray, grey_x: np.ndarray, *, max
 
 
 class ColorFlow:
-    """Dense optical flow between two grey images (OpenCV DIS at ``preset``, ultrafast by default; one per thread)."""
+    """Dense optical flow between two grey images (OpenCV DIS at ``preset`` with its finest pyramid level ``finest``
+    and ``refinement`` variational refinement iterations, ``None``: the preset's; one per thread). ``preset``
+    ``None``: the module's flow, ultrafast at ``FLOW_FINEST``."""
 
-    def __init__(self, preset: int | None = None) -> None:
+    def __init__(self, preset: int | None = None, *, finest: int | None = None, refinement: int | None = None) -> None:
         import threading
 
         self._local = threading.local()
         self.preset = cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST if preset is None else int(preset)
+        finest = FLOW_FINEST if finest is None and preset is None else finest
+        self.finest = None if finest is None else int(finest)
+        self.refinement = None if refinement is None else int(refinement)
 
     def __call__(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Flow ``(h, w, 2)`` float32 pixels of ``a``'s pixels into ``b``."""
         dis = getattr(self._local, "dis", None)
         if dis is None:
             dis = self._local.dis = cv2.DISOpticalFlow_create(self.preset)
+            if self.finest is not None:
+                dis.setFinestScale(self.finest)
+            if self.refinement is not None:
+                dis.setVariationalRefinementIterations(self.refinement)
         if a.shape != b.shape:
             raise WarpInputError(f"flow images differ in size: {a.shape} and {b.shape}")
         return dis.calc(a, b, None)
@@ -198,7 +227,7 @@ class SceneFlow:
         self.gains = np.asarray(DEFAULT_GAINS if gains is None else gains, f32).ravel()
         if self.gains.size == 0 or not (self.gains > 0).all():
             raise WarpInputError(f"scene flow gains must be positive factors, got {gains!r}")
-        self.last_gain, self.last_landed = 1.0, (0, 0)
+        self.last_gain, self.last_landed, self.last_refined = 1.0, (0, 0), False
         rays = K_depth.ray_grid().astype(f32)  # (H, W, 3), z = 1, undistorted
         self._rays = np.ascontiguousarray(rays[..., :2])  # (H, W, 2)
         self._Rr = np.ascontiguousarray(np.einsum("ij,hwj->ihw", T_color_depth.R, rays), f32)  # (3, H, W)
@@ -223,12 +252,19 @@ class SceneFlow:
         trusted = np.repeat(np.repeat(trusted, st, axis=0), st, axis=1)[:d.shape[0], :d.shape[1]] if st > 1 else trusted
         return np.ascontiguousarray(np.moveaxis(out, 0, -1)), trusted
 
-    def crop_motion(self, depth_o: np.ndarray, depth_x: np.ndarray, flow, *, scale: float, warper) -> CropMotion:
+    def crop_motion(self, depth_o: np.ndarray, depth_x: np.ndarray, flow, *, scale: float, warper,
+                    refine=None) -> CropMotion:
         """:meth:`motion` laid out for ``warper`` (:class:`align.warp.DepthWarper` from the HQ depth camera):
         rotated into its destination camera, over its source crop (:class:`align.warp.CropMotion`), as the
-        compiled pass writes it: no ``(H, W, 3)`` image of motions, no rotation of one, no copy."""
+        compiled pass writes it: no ``(H, W, 3)`` image of motions, no rotation of one, no copy.
+
+        ``refine``: ``None`` or ``(min_landed, finer)``: when under ``min_landed`` (a share) of the moving samples
+        land on their own surface at the best gain (:attr:`last_landed`), ``finer()`` gives the flow again (a
+        finer optical flow) and steps 1-3 run on it instead (:attr:`last_refined`); decided after the gain,
+        so the failed flow's step 3, fill and expansion are never computed."""
         d, dx = self._depths(depth_o, depth_x)
-        out, _ = self._planar(d, dx, flow, scale, warper.T.R.astype(np.float32), tuple(int(c) for c in warper.crop), 4)
+        out, _ = self._planar(d, dx, flow, scale, warper.T.R.astype(np.float32), tuple(int(c) for c in warper.crop), 4,
+                              refine)
         return CropMotion(dst=out[:3].reshape(3, -1), dz=out[3].reshape(-1))
 
     def _depths(self, depth_o: np.ndarray, depth_x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -238,12 +274,10 @@ class SceneFlow:
                                  f"{self._rays.shape[:2]}")
         return d, np.ascontiguousarray(depth_x, np.float32)
 
-    def _planar(self, d: np.ndarray, dx: np.ndarray, flow, scale: float, R: np.ndarray, crop: tuple, channels: int):
-        """Steps 1-3, the flow's gain, the fill and (``stride`` > 1) the blocks' expansion over the rows
-        ``crop[0]:crop[1]`` and columns ``crop[2]:crop[3]``: ``(out (channels, Hc, Wc), trusted (Hs, Ws))``
-        (:mod:`align._flow_kernel`)."""
-        from align._flow_kernel import (block_depths, expand_blocks, fill_offsets, fill_untrusted, flow_gain, scene_motion,
-                                        scene_shift)
+    def _shifts(self, d: np.ndarray, dx: np.ndarray, flow, crop: tuple):
+        """Steps 1-2 and the flow's gain (:attr:`last_gain`, :attr:`last_landed`) over ``crop``:
+        ``(cams, grid, low shape, shift (Hs, Ws, 2) times the gain, has (Hs, Ws))`` (:mod:`align._flow_kernel`)."""
+        from align._flow_kernel import flow_gain, scene_shift
 
         f32 = np.float32
         Kd, Kc, s = self.K_depth, self.K_color, self.flow_scale
@@ -255,13 +289,32 @@ class SceneFlow:
         g0, h0 = r0 - r0 % st, c0 - c0 % st  # blocks on the image's grid, whatever the crop
         grid = (np.int64(g0), np.int64(h0), np.int64(st))
         low = (-(-(r1 - g0) // st), -(-(c1 - h0) // st))
-        out, shift = np.empty((channels, *low), f32), np.empty((*low, 2), f32)
-        trusted, has, still = np.empty(low, bool), np.empty(low, bool), np.empty(low, bool)
+        shift, has = np.empty((*low, 2), f32), np.empty(low, bool)
         scene_shift(d, np.ascontiguousarray(flow, f32), cams, grid, shift, has)
         k, landed, moving = flow_gain(d, dx, shift, has, grid, self.gains, self.max_jump_m, f32(GAIN_MIN_PX))
         self.last_gain, self.last_landed = round(float(self.gains[k]), 6), (int(landed), int(moving))
         if self.last_gain != 1:
             shift *= self.gains[k]
+        return cams, grid, low, shift, has
+
+    def _planar(self, d: np.ndarray, dx: np.ndarray, flow, scale: float, R: np.ndarray, crop: tuple, channels: int,
+                refine=None):
+        """Steps 1-3, the flow's gain, the fill and (``stride`` > 1) the blocks' expansion over the rows
+        ``crop[0]:crop[1]`` and columns ``crop[2]:crop[3]``: ``(out (channels, Hc, Wc), trusted (Hs, Ws))``
+        (:mod:`align._flow_kernel`). ``refine``: :meth:`crop_motion`'s."""
+        from align._flow_kernel import block_depths, expand_blocks, fill_offsets, fill_untrusted, scene_motion
+
+        f32 = np.float32
+        cams, grid, low, shift, has = self._shifts(d, dx, flow, crop)
+        self.last_refined = False
+        if refine is not None:
+            landed, moving = self.last_landed
+            if moving and landed < refine[0] * moving:  # decided before step 3: the fast flow's rest is not computed
+                cams, grid, low, shift, has = self._shifts(d, dx, refine[1](), crop)
+                self.last_refined = True
+        st, (r0, r1, c0, c1) = self.stride, crop
+        out = np.empty((channels, *low), f32)
+        trusted, still = np.empty(low, bool), np.empty(low, bool)
         scene_motion(d, dx, shift, has, cams, np.ascontiguousarray(R, f32), grid, f32(scale), self.max_jump_m,
                      f32(STILL_PX), f32(STILL_DZ_M), out, trusted, still)
         dl = block_depths(d, grid, low)
@@ -312,7 +365,8 @@ class FlowMotion:
                  warp=None) -> None:
         self._read_depth, self._read_color, self.warper, self.scene_flow = read_depth, read_color, warper, scene_flow
         self._warp = warp
-        self._flow, self._fallback = ColorFlow(), ColorFlow(FALLBACK_PRESET)
+        self._flow = ColorFlow()
+        self._fallback = ColorFlow(FALLBACK_PRESET, finest=FALLBACK_FINEST, refinement=FALLBACK_REFINEMENT)
         self._keep = max(int(keep), 2)
         self._depth: dict[int, np.ndarray] = {}
         self._grey: dict[int, np.ndarray | None] = {}
@@ -336,11 +390,8 @@ class FlowMotion:
             return None
         do, dx = (self._cached(self._depth, k, self._read_depth) for k in (own, other))
         flow = settle_flow(self._flow(go, gx), go, gx)
-        motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper)  # already frac of the way
-        landed, moving = self.scene_flow.last_landed
-        if moving and landed < FALLBACK_LANDED * moving:  # the fast flow failed here: a finer one
-            flow = settle_flow(self._fallback(go, gx), go, gx)
-            motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper)
+        finer = (FALLBACK_LANDED, lambda: settle_flow(self._fallback(go, gx), go, gx))  # where the fast flow failed
+        motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper, refine=finer)  # frac of the way
         if self._warp is not None:
             return self._warp(do, motion)
         return moved_reference(self.warper, do, motion, 1.0)

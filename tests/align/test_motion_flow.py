@@ -249,8 +249,10 @@ def test_flow_gain_puts_back_an_underestimated_flow():
     alpha = 0.25
     f = _frames((0.0, 0.2, 2.2), (0.07, 0.0, 0.0), alpha)
     warper = DepthWarper(f["Kh"], f["Kl"], f["T_lq_hq"], edge_reach=0.0)
-    flow = ColorFlow()(*(flow_image(c) for c in f["color"]))
-    gained, as_is = SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"]), SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"], gains=(1.0,))
+    # the test rig's colour camera is half the simulator's: its half-size image at ultrafast's own finest level
+    # gives the flow at 1/8 of the colour image, as the module's flow on the simulator's (session 8's flow)
+    flow = ColorFlow(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)(*(flow_image(c, scale=0.5) for c in f["color"]))
+    gained, as_is = (SceneFlow(f["Kh"], f["Kc"], f["T_color_depth"], flow_scale=0.5, gains=g) for g in (None, (1.0,)))
 
     def mae(sf, fl):
         return _mae(moved_reference(warper, f["depth"][0], sf.crop_motion(*f["depth"], fl, scale=alpha, warper=warper), 1.0),
@@ -274,7 +276,7 @@ def test_settled_flow_rests_where_textured_image_did_not_change_and_keeps_what_m
     g1 = g0.copy()
     patch = cv2.GaussianBlur((rng.random((40, 40)) * 255).astype(np.uint8), (3, 3), 0.8)
     g0[40:80, 100:140], g1[40:80, 104:144] = patch, patch  # the patch moves 4 px right
-    flow = ColorFlow()(g0, g1)
+    flow = ColorFlow(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)(g0, g1)  # (its own finest level: a flow that spreads)
     out = settle_flow(flow, g0, g1)
     moving = np.zeros(g0.shape, bool)
     moving[30:90, 90:154] = True  # the patch in either frame, with the blur's reach

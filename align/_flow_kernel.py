@@ -148,7 +148,9 @@ def scene_motion(d, dx, shift, has, cams, R, grid, scale, max_jump, still_px, st
     pinhole = kd.size > 0
     one, zero, half = np.float32(1), np.float32(0), np.float32(0.5)
     fxd, fyd, cxd, cyd = (kd[0], kd[1], kd[2], kd[3]) if pinhole else (one, one, zero, zero)
-    R00, R01, R02, R10, R11, R12, R20, R21, R22 = R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2]
+    R00, R01, R02 = R[0, 0], R[0, 1], R[0, 2]
+    R10, R11, R12 = R[1, 0], R[1, 1], R[1, 2]
+    R20, R21, R22 = R[2, 0], R[2, 1], R[2, 2]
     sp2, Wf, Hf, Wm, Hm = still_px * still_px, np.float32(W), np.float32(H), np.float32(W - 1), np.float32(H - 1)
     for i in range(trusted.shape[0]):
         y = r0 + i * stride
@@ -173,7 +175,9 @@ def scene_motion(d, dx, shift, has, cams, R, grid, scale, max_jump, still_px, st
                                 rxq, ryq = _lerp(rays, x0, y0, fx, fy, 0), _lerp(rays, x0, y0, fx, fy, 1)
                             m0, m1 = (rxq * zq - z * rays[y, x, 0]) * scale, (ryq * zq - z * rays[y, x, 1]) * scale
                             o3 = (zq - z) * scale
-                            o0, o1, o2 = R00 * m0 + R01 * m1 + R02 * o3, R10 * m0 + R11 * m1 + R12 * o3, R20 * m0 + R21 * m1 + R22 * o3
+                            o0 = R00 * m0 + R01 * m1 + R02 * o3
+                            o1 = R10 * m0 + R11 * m1 + R12 * o3
+                            o2 = R20 * m0 + R21 * m1 + R22 * o3
             out[0, i, j], out[1, i, j], out[2, i, j] = o0, o1, o2
             if C == 4:
                 out[3, i, j] = o3

@@ -93,7 +93,10 @@ the finer flow without its variational refinement and decided before step 3, and
 rewritten (steps 1-3 and the fill: 3.7 -> 2.4 ms per pair). CPU throughput 0.46 of the plain warp (session 8:
 0.34): still under the 0.5 issue 12 asks. Per pair (ms CPU, 30 consecutive pairs of seed 1): the moved warp
 8.7 (the plain warp's cost), the expansion 2.8, DIS 2.2 (+0.45 for the finer flow's share), the fill 1.0,
-steps 1-2 1.0, the gain vote 0.7, step 3 0.7, the grey images 0.6, settling 0.4. Tried and dropped: optical flow on the rectangle of the colour images that changed only (DIS on
+steps 1-2 1.0, the gain vote 0.7, step 3 0.7, the grey images 0.6, settling 0.4. Session 9 also tried: the
+finer flow on the rectangle of the moving samples that missed their surface only (a quarter of the image, but
+seed 5's HQ frame 8 went from 8 to 20 mm), the expansion with a packed per-sample layout or a per-block still
+test (no faster). Tried and dropped before: optical flow on the rectangle of the colour images that changed only (DIS on
 the smaller image: +0.3 mm MAE on seeds 2 and 3; for the finer flow, no faster where people and
 balloons spread over 75-80 % of the image); still tiles skipping the flow (the inside of a uniform
 moving surface does not change); a finer DIS for every pair (finest scale 1 / patch stride 6: no lower
@@ -147,9 +150,10 @@ def flow_image(color: np.ndarray, *, scale: float = DEFAULT_FLOW_SCALE) -> np.nd
     """The grey image the flow runs on: ``color`` ``(H, W, 3)`` RGB uint8 (or ``(H, W)`` grey) reduced
     by ``scale``, uint8."""
     g = color if color.ndim == 2 else cv2.cvtColor(np.ascontiguousarray(color), cv2.COLOR_RGB2GRAY)
-    while scale <= 0.5 and g.shape[0] % 2 == 0 and g.shape[1] % 2 == 0 and (1 / scale).is_integer():  # halvings:
-        g, scale = cv2.resize(g, (g.shape[1] // 2, g.shape[0] // 2), interpolation=cv2.INTER_AREA), scale * 2  # OpenCV's
-    if scale == 1:  # fast 2x2 mean (a 4x4 mean in one call costs 0.3 ms more on 960x540)
+    while scale <= 0.5 and g.shape[0] % 2 == 0 and g.shape[1] % 2 == 0 and (1 / scale).is_integer():
+        # halvings: OpenCV's fast 2x2 mean (a 4x4 mean in one call costs 0.3 ms more on 960x540)
+        g, scale = cv2.resize(g, (g.shape[1] // 2, g.shape[0] // 2), interpolation=cv2.INTER_AREA), scale * 2
+    if scale == 1:
         return np.ascontiguousarray(g, np.uint8)
     return cv2.resize(g, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
 
@@ -391,7 +395,8 @@ class FlowMotion:
         do, dx = (self._cached(self._depth, k, self._read_depth) for k in (own, other))
         flow = settle_flow(self._flow(go, gx), go, gx)
         finer = (FALLBACK_LANDED, lambda: settle_flow(self._fallback(go, gx), go, gx))  # where the fast flow failed
-        motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper, refine=finer)  # frac of the way
+        # already frac of the way
+        motion = self.scene_flow.crop_motion(do, dx, flow, scale=frac, warper=self.warper, refine=finer)
         if self._warp is not None:
             return self._warp(do, motion)
         return moved_reference(self.warper, do, motion, 1.0)

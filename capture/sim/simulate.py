@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from capture.camera import Intrinsics
 from capture.session import SessionWriter
-from capture.sim.clocks import DEFAULT_MAX_SHIFT_US, draw_clocks, frame_schedule
+from capture.sim.clocks import draw_clocks, frame_schedule
 from capture.sim.effects import parse_effects
 from capture.sim.errors import SimulationError
 from capture.sim.output import Plan, TruthWriter, session_manifest
@@ -80,7 +80,8 @@ def simulate(out, *, rig: str = "lq-hq", scene: str = "people", seconds: float =
         effects: ``{"depth_scale": 1.02}`` or ``["depth_scale=1.02"]`` (:mod:`capture.sim.effects`).
         undeclared: write the effects to ``truth/`` only, not to ``session.json``.
         time_shift_us: the true Delta (µs) of the target (LQ) host clock against the reference (HQ);
-            drawn uniformly within +-60 ms when None.
+            drawn uniformly within +-55 ms when None (:func:`capture.sim.clocks.draw_shift_us`: inside align's
+            +-60 ms search range with a margin).
         frame_phase_us: how long after each HQ (reference) frame the LQ (target) frame is exposed, in
             scene time, within one LQ period either way (:func:`capture.sim.clocks.draw_clocks`);
             drawn with the seed when None. It sets how far apart in time a pair's two frames fall
@@ -156,7 +157,7 @@ def _check_options(*, seconds: float, seed: int, time_shift_us, color_encoding: 
         raise SimulationError(f"--seconds: {seconds} must be within (0, 600]")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise SimulationError(f"--seed: {seed} must be a non-negative integer")
-    if time_shift_us is not None and abs(int(time_shift_us)) > 10 * DEFAULT_MAX_SHIFT_US:
+    if time_shift_us is not None and abs(int(time_shift_us)) > 600_000:
         raise SimulationError(f"--time-shift-ms: {time_shift_us / 1000:g} ms is beyond +-600 ms")
     if color_encoding not in COLOR_ENCODINGS:
         raise SimulationError(f"--color-format: {color_encoding!r} is not one of {', '.join(COLOR_ENCODINGS)}")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from capture.session import open_session
-from capture.sim.clocks import Clock, frame_schedule
+from capture.sim.clocks import DEFAULT_MAX_SHIFT_US, Clock, draw_shift_us, frame_schedule
 from capture.truth import read_truth
 from tests.capture.simkit import session
 
@@ -62,7 +62,23 @@ def test_time_shift_definition(sim):
     assert np.abs(t_lq - predicted).max() <= 1.0
     assert m["t0_us"] == hq["host_offset_us"] and m["a_us"] == t.time_shift_us
     assert m["b"] == pytest.approx(400e-6)
-    assert abs(t.time_shift_us) <= 60_000
+    assert abs(t.time_shift_us) <= DEFAULT_MAX_SHIFT_US  # drawn (the session declares none)
+
+
+def test_drawn_time_shifts_stay_inside_aligns_search_range():
+    """Shifts the simulator draws keep a margin inside align's search range that the shift estimates' errors
+    (0.4-1.1 ms on clean seeds) do not cross, so align's edge rule (a best shift within a quarter step of the
+    range's end is refused) cannot refuse a drawn one: session 7's seed 26 was drawn 1.1 ms inside +-60 ms,
+    estimated 0.65 ms further out, and refused. They still spread uniformly over the rest of the range."""
+    from align.time_shift import DEFAULT_RANGE_US, DEFAULT_STEP_US
+
+    rng = np.random.default_rng(26)
+    shifts = np.array([draw_shift_us(rng) for _ in range(20_000)])
+    edge = DEFAULT_RANGE_US - 0.25 * DEFAULT_STEP_US  # the nearest to the end align accepts
+    assert edge - np.abs(shifts).max() >= 3 * 1100  # three times the largest estimate error seen
+    assert np.abs(shifts).max() > DEFAULT_MAX_SHIFT_US - 100  # the range is used up to its bound
+    q = np.quantile(shifts, [0.1, 0.25, 0.5, 0.75, 0.9])
+    assert np.allclose(q, DEFAULT_MAX_SHIFT_US * np.array([-0.8, -0.5, 0.0, 0.5, 0.8]), atol=1500)  # uniform
 
 
 def test_dropped_frames_leave_gaps(sim):

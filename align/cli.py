@@ -48,12 +48,14 @@ def register(subparsers) -> None:
                         "leaves it unobservable: add --allow-unobservable)")
     g.add_argument("--residual-k", type=float, default=6.0, metavar="K",
                    help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
-    g.add_argument("--reference-edges", choices=tuple(RULES), default="strict-fg",
+    g.add_argument("--reference-edges", choices=tuple(RULES), default="footprint-fg",
                    help="the reference at depth edges: strict extends no surface past its last HQ sample and masks the "
                         "far side of every reference edge (3 px, counted in aligned.json); mixed does the same and also "
                         "masks what the HQ's time-of-flight mixed pixels hide (fewer large errors, more pixels masked); "
                         "midpoint guesses the edge half way and masks nothing; strict-fg and mixed-fg mask as strict and "
-                        "mixed but only where the reference is in front of the background, i.e. in the ROI (default: %(default)s)")
+                        "mixed but only where the reference is in front of the background, i.e. in the ROI; footprint-fg also masks "
+                        "what lies behind the footprint of any HQ sample at an edge, the ones the warp drops included "
+                        "(default: %(default)s)")
     g = p.add_argument_group("effects (the alignment loop, align/loop)")
     g.add_argument("--no-loop", action="store_true",
                    help="skip the effect loop (drift, rolling shutter, lens, depth scale/offset, duplicated frames)")

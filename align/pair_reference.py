@@ -44,7 +44,7 @@ class ReferenceOptions:
     (``"edges"``: :mod:`align.motion`; ``"flow"``: the HQ frame's points moved along the HQ colour
     images' optical flow, :mod:`align.motion_flow`, where the HQ frames have colour)."""
 
-    reference_edges: str = "strict-fg"
+    reference_edges: str = "footprint-fg"
     edge_rel: float = 0.03
     motion: bool = True
     motion_min_dt_ms: float = 1.0

@@ -124,7 +124,7 @@ class AlignOptions:
     board_frames: int = 30
     loop: bool = True
     loop_correct_depth: bool = True
-    reference_edges: str = "strict-fg"
+    reference_edges: str = "footprint-fg"
     motion: bool = True
     motion_min_dt_ms: float = 1.0
     motion_model: str = "edges"

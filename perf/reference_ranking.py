@@ -22,6 +22,10 @@ frames, BF - RGF MSE against the reference +4.6 [+3.3, +6.0] mm², against the t
 on the reference's pixels +6.4 [+5.2, +7.7], with every edge rule (``strict``, ``strict-fg``, ``mixed``,
 ``mixed-fg``); the fourth scoring shows where the truth's order comes from. It also prints the order of the
 methods in each scoring and whether the reference's equals the truth's.
+
+Since session 9 the leaderboard itself scores the truth columns on the reference's pixels and reports the rest
+of the ROI as the stratum "silhouettes / no reference", with the same check (:func:`bench.report.ranking_check`);
+this script recomputes it from the aligned dataset alone, methods run afresh.
 """
 from __future__ import annotations
 

@@ -75,7 +75,7 @@ def test_end_to_end_error_is_that_of_the_references_written(lens_dups):
     loop = SimpleNamespace(base=geometry, lq_duplicates=[], correct_lq_depth=lambda d: d,
                            **{k: v for k, v in geometry.items() if k not in ("t0_us",)})
     opts = ReferenceOptions.from_meta(meta)
-    assert opts.reference_edges == "strict-fg"  # the default
+    assert opts.reference_edges == "footprint-fg"  # the default
     e2e = end_to_end(setup, None, loop, TruthSource(root, "lq"), pairs=10, reference=opts,
                      background=res.background)["after"]
     rows = {(int(r["hq_frame"]), int(r["lq_frame"])): int(r["index"]) for r in ds.rows}
@@ -87,7 +87,7 @@ def test_end_to_end_error_is_that_of_the_references_written(lens_dups):
         assert 1e3 * np.mean(np.abs(ref[m] - tr[m])) == pytest.approx(mae, abs=0.1)
     midpoint = end_to_end(setup, None, loop, TruthSource(root, "lq"), pairs=10,
                           reference=ReferenceOptions(reference_edges="midpoint"))["after"]
-    # the two ways differ, beyond the 0.1 mm the match above allows: this one is align's (strict-fg keeps the
+    # the two ways differ, beyond the 0.1 mm the match above allows: this one is align's (the -fg rules keep the
     # background outside the ROI that strict masked, so over all pixels its RMSE is near the midpoint warp's)
     diff = np.abs(np.subtract(midpoint["frame_mae_mm"], e2e["frame_mae_mm"]))
     assert np.mean(diff) > 0.3, (diff, midpoint["reference_rmse_mm"], e2e["reference_rmse_mm"])

@@ -248,7 +248,7 @@ def test_reference_carried_to_the_lq_instant(sim_plus55, aligned55, tmp_path):
 
 
 def test_reference_edge_rule_is_recorded_and_halves_large_errors(sim_plus55, aligned55):
-    """The default edge rule, strict-fg (align.reference_edges), is recorded with its masked count; the
+    """The default edge rule, footprint-fg (align.reference_edges), is recorded with its masked count; the
     references written leave under half the ROI pixels off the truth by more than 50 mm that the midpoint
     warp of the same HQ frames with the same fit leaves (those lie along silhouettes)."""
     from align.reference_edges import EdgeRule
@@ -257,16 +257,17 @@ def test_reference_edge_rule_is_recorded_and_halves_large_errors(sim_plus55, ali
     res, out = aligned55
     meta = json.loads((out / "aligned.json").read_text())
     rule = meta["reference_edges"]
-    assert rule["rule"] == "strict-fg" and rule["scored_only"] and rule["edge_reach"] == 0 and rule["mask_px"] == 3
+    assert rule["rule"] == "footprint-fg" and rule["scored_only"] and rule["occluders"] and rule["edge_reach"] == 0
+    assert rule["mask_px"] == 3
     assert 0 < rule["masked_roi_pixels"] < 0.1 * rule["roi_pixels"]
     ds, sess = AlignedDataset(out), open_session(sim_plus55)
     r = EdgeRule.named("midpoint")
     warp = DepthWarper(sess.intrinsics("hq"), sess.intrinsics("lq"), ds.T_lq_hq, edge_reach=r.edge_reach)
-    big = {"strict-fg": 0, "midpoint": 0}
+    big = {"footprint-fg": 0, "midpoint": 0}
     for i in range(0, len(ds), 6):
         f = ds.frame(i)
         mid, _ = r.apply(warp(sess.read_depth("hq", int(ds.rows[i]["hq_frame"]))))
-        for name, ref in (("strict-fg", f.reference), ("midpoint", mid)):
+        for name, ref in (("footprint-fg", f.reference), ("midpoint", mid)):
             use = f.roi & np.isfinite(ref) & np.isfinite(f.truth)
             big[name] += int((np.abs(ref - f.truth)[use] > 0.05).sum())
-    assert big["strict-fg"] < 0.5 * big["midpoint"], big
+    assert big["footprint-fg"] < 0.5 * big["midpoint"], big

@@ -235,3 +235,150 @@ def track(frames: list[np.ndarray], anchor: int, xy: np.ndarray, *, fb_px: float
             out[j, alive] = pts
             i = j
     return out
+
+
+# --------------------------------------------------------------------------- photometric refinement
+@dataclass(frozen=True)
+class Patches:
+    """HQ colour patches around keypoints, lifted to 3D: what :func:`refine_offsets` needs.
+
+    Attributes:
+        intensity: ``(N, P)`` float32 grey values of the (blurred) HQ colour image on a square grid
+            of ``P = (2 r + 1)^2`` sub-pixel positions around each keypoint.
+        points: ``(N, P, 3)`` those positions in the HQ colour camera frame, metres (NaN where the
+            depth is missing or belongs to another surface than the keypoint's).
+        centre: ``(N, 3)`` the keypoints themselves in the HQ colour camera frame.
+    """
+
+    intensity: np.ndarray
+    points: np.ndarray
+    centre: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.intensity.shape[0])
+
+    def subset(self, index: np.ndarray) -> "Patches":
+        return Patches(self.intensity[index], self.points[index], self.centre[index])
+
+
+def _bilinear(image: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """``image`` sampled at ``xy`` ``(..., 2)`` (bilinear, NaN outside): shape ``xy.shape[:-1]``."""
+    shp = xy.shape[:-1]
+    q = np.asarray(xy, np.float32).reshape(-1, 2)
+    n = q.shape[0]
+    if n == 0:
+        return np.zeros(shp, np.float32)
+    q = np.concatenate([q, np.full((-n % 1024, 2), -1e4, np.float32)]).reshape(-1, 1024, 2)  # remap: < 32767 rows
+    out = cv2.remap(np.asarray(image, np.float32), q[..., 0], q[..., 1], cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+    return out.reshape(-1)[:n].reshape(shp)
+
+
+def _blurred_grey(image: np.ndarray, sigma_px: float) -> np.ndarray:
+    img = np.asarray(image)
+    grey = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) if img.ndim == 3 else img
+    grey = grey.astype(np.float32)
+    return cv2.GaussianBlur(grey, (0, 0), sigma_px) if sigma_px > 0 else grey
+
+
+def hq_patches(image: np.ndarray, depth_in_color: np.ndarray, K_color: Intrinsics, xy: np.ndarray, *,
+               radius: int = 5, sigma_px: float = 0.8, edge_rel: float = 0.03) -> Patches:
+    """Patches of the HQ colour ``image`` around keypoints ``xy`` ``(N, 2)``, lifted with the HQ depth
+    registered to the colour camera (``depth_in_color``, ``(H, W)`` m). Grid step 1 px; the image is
+    blurred by a Gaussian of ``sigma_px`` first (the simulator's and real sensors' colour images
+    alias; the blur makes the intensities smooth enough for :func:`refine_offsets`' gradients).
+    Patch pixels whose depth differs from the keypoint's by more than ``edge_rel`` (another surface)
+    are left out (NaN points)."""
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    o = np.arange(-radius, radius + 1, dtype=np.float64)
+    grid = np.stack(np.meshgrid(o, o), -1).reshape(-1, 2)
+    P = xy[:, None, :] + grid[None]
+    inten = _bilinear(_blurred_grey(image, sigma_px), P)
+    zk = sample_depth(depth_in_color, xy, edge_rel=edge_rel)
+    z = sample_depth(depth_in_color, P.reshape(-1, 2), edge_rel=edge_rel).reshape(P.shape[:2])
+    with np.errstate(invalid="ignore"):
+        z = np.where(np.abs(z - zk[:, None]) <= edge_rel * zk[:, None], z, np.nan)
+    pts = K_color.unproject(P.reshape(-1, 2), z.ravel()).reshape(P.shape[0], P.shape[1], 3)
+    return Patches(inten.astype(np.float32), pts, K_color.unproject(xy, zk))
+
+
+def refine_offsets(patches: Patches, image: np.ndarray, K: Intrinsics, T_cam_hqcolor, xy: np.ndarray, *,
+                   sigma_px: float = 1.0, iterations: int = 12, max_px: float = 2.0, min_valid: float = 0.6,
+                   min_ncc: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
+    """Where each HQ patch lies in an LQ colour image, relative to the matched keypoint ``xy`` ``(N, 2)``.
+
+    The patch's 3D points are mapped into ``image`` (camera ``K``) through ``T_cam_hqcolor`` (the
+    current extrinsic estimate; it fixes the patch's shape, perspective included) and placed so that
+    its keypoint falls on ``xy``; then a 2D offset ``t`` and an affine intensity change ``a I + b``
+    are fitted by Gauss-Newton (Lucas-Kanade with gain and bias) to the ``sigma_px``-blurred image.
+    ``xy + t`` is the keypoint's photometrically refined position. SIFT places the same texture at
+    positions off by about 0.45 px (median) between the two cameras, the same every frame for
+    still texture: that error does not average out over frames, and with the far features pulling
+    little on the translation along the optical axis it put ``T_lq_hq`` 1-1.5 mm off in z on clean
+    simulated sessions (``docs/worklog``, session 9). Patches cut that error about in half.
+
+    Returns ``(offsets (N, 2) px, ok (N,) bool)``; ``ok`` is false (offset 0) where fewer than
+    ``min_valid`` of a patch's pixels land in the image with depth, the offset leaves ``max_px``,
+    the iteration does not settle, or the fitted patch correlates below ``min_ncc``.
+    """
+    N, P = patches.intensity.shape
+    if N == 0:
+        return np.zeros((0, 2)), np.zeros(0, bool)
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    L = _blurred_grey(image, sigma_px)
+    gx = cv2.Sobel(L, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
+    gy = cv2.Sobel(L, cv2.CV_32F, 0, 1, ksize=1, scale=0.5)
+    with np.errstate(invalid="ignore"):
+        q = (K.project(T_cam_hqcolor.apply(patches.points.reshape(-1, 3))).reshape(N, P, 2)
+             - K.project(T_cam_hqcolor.apply(patches.centre))[:, None, :] + xy[:, None, :])
+    h = patches.intensity.astype(np.float64)
+    base = np.isfinite(h) & np.all(np.isfinite(q), axis=2)
+    t = np.zeros((N, 2))
+    ab = np.tile([1.0, 0.0], (N, 1))
+    step = np.full(N, np.inf)
+    for k in range(iterations):
+        qq = q + t[:, None, :]
+        I = _bilinear(L, qq).astype(np.float64)
+        w = base & np.isfinite(I)
+        Ix, Iy = _bilinear(gx, qq).astype(np.float64), _bilinear(gy, qq).astype(np.float64)
+        hz, Iz = np.where(w, h, 0.0), np.where(w, I, 0.0)
+        if k == 0:  # gain and bias first, at the matched position
+            ab = _gain_bias(hz, Iz, w)
+        r = np.where(w, Iz - ab[:, :1] * hz - ab[:, 1:], 0.0)
+        J = np.stack([np.where(w, Ix, 0.0), np.where(w, Iy, 0.0), -hz, -w.astype(np.float64)], axis=2)  # (N, P, 4)
+        A = np.einsum("npi,npj->nij", J, J) + 1e-9 * np.eye(4)
+        g = np.einsum("npi,np->ni", J, r)
+        try:
+            d = -np.linalg.solve(A, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            d = np.zeros((N, 4))
+        d = np.where(np.isfinite(d), d, 0.0)
+        dt = np.clip(d[:, :2], -1.0, 1.0)
+        t += dt
+        ab += d[:, 2:]
+        step = np.linalg.norm(dt, axis=1)
+        if step.max() < 1e-3:
+            break
+    qq = q + t[:, None, :]
+    I = _bilinear(L, qq).astype(np.float64)
+    w = base & np.isfinite(I)
+    ncc = _ncc(np.where(w, h, 0.0), np.where(w, I, 0.0), w)
+    ok = (w.sum(axis=1) >= min_valid * P) & (np.linalg.norm(t, axis=1) <= max_px) & (step < 0.01) & (ncc >= min_ncc)
+    return np.where(ok[:, None], t, 0.0), ok
+
+
+def _gain_bias(h: np.ndarray, I: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Per row, ``(a, b)`` of the least-squares ``I = a h + b`` over the ``w`` pixels: ``(N, 2)``."""
+    n = np.maximum(w.sum(axis=1), 1)
+    mh, mI = h.sum(axis=1) / n, I.sum(axis=1) / n
+    dh = np.where(w, h - mh[:, None], 0.0)
+    a = (dh * np.where(w, I - mI[:, None], 0.0)).sum(axis=1) / np.maximum((dh * dh).sum(axis=1), 1e-9)
+    return np.stack([a, mI - a * mh], axis=1)
+
+
+def _ncc(h: np.ndarray, I: np.ndarray, w: np.ndarray) -> np.ndarray:
+    n = np.maximum(w.sum(axis=1), 1)
+    dh = np.where(w, h - (h.sum(axis=1) / n)[:, None], 0.0)
+    dI = np.where(w, I - (I.sum(axis=1) / n)[:, None], 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (dh * dI).sum(axis=1) / np.sqrt((dh * dh).sum(axis=1) * (dI * dI).sum(axis=1))

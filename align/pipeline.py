@@ -47,7 +47,7 @@ from align.association import associate, nearest_mapping, overlap_us
 from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
 from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
-from align.features import FEATURES, detect, inverse_depth_gradient, lift, match, track
+from align.features import FEATURES, Patches, detect, hq_patches, inverse_depth_gradient, lift, match, refine_offsets, track
 from align.motion import motion_summary
 from align.pair_reference import MOTION_MODELS, PairReferences, ReferenceOptions
 from align.residuals import depth_residual, outliers, robust_summary
@@ -94,6 +94,9 @@ class AlignOptions:
     ``always``, or ``never`` (the pairwise feature fits as they are). With an HQ reference the feature
     fits were within 6 mm of the simulator's extrinsics and the refinement 1.7-7.2 mm (within its sd),
     so they are kept there.
+    refine_features: after a first fit of ``T_ex``, move every matched LQ keypoint (and its track) to where
+    the HQ colour patch around its HQ keypoint lies in the LQ image (:func:`align.features.refine_offsets`),
+    drop the keypoints that cannot be refined, and fit ``T_ex`` again (:func:`refine_probe_tracks`).
     view_sync: multi-view rigs only: the time shift of a view against the rig's reference from the
     depth disagreement of what moves, given the calibrated rig (:mod:`align.view_sync`):
     ``unobservable`` (default: where colour features could not determine it, instead of the
@@ -118,6 +121,7 @@ class AlignOptions:
     roi_frames: int = 40
     edge_rel: float = 0.03
     min_matches: int = 60
+    refine_features: bool = True
     progress: bool = True
     dejitter: bool = True
     board: str | None = None
@@ -279,6 +283,14 @@ def pair_setup(session: Session, *, lq: str, hq: str, dejitter: bool = True) -> 
 
 
 # --------------------------------------------------------------------------------------- probes
+@dataclass
+class FeatureProbe(Probe):
+    """A :class:`~align.time_shift.Probe` plus the ``patches`` of its matched HQ keypoints (in ``points``
+    order) that the photometric refinement (:func:`refine_probe_tracks`) needs."""
+
+    patches: Patches | None = None
+
+
 class ProbeBuilder:
     """Reads the frames of a probe and computes its features (once per frame)."""
 
@@ -328,8 +340,43 @@ class ProbeBuilder:
                     scale=_detect_scale(rgb_anchor, o.detect_scale))
         ia, ib = match(fh, fl)
         tracks = track(greys, anchor, fl.xy[ib])
-        return Probe(hq_index=i, t_hq_us=t, points=X[ia], lq_index=win, t_lq_us=s.t_lq_c[win], tracks=tracks,
-                     anchor=anchor, w_grad=w_grad[ia])
+        patches = hq_patches(rgb_hq, d_col, s.K_hq_color, fh.xy[ia], sigma_px=PATCH_BLUR_PX * max(
+            1.0, s.K_hq_color.fx / s.K_lq_color.fx), edge_rel=o.edge_rel) if o.refine_features else None
+        return FeatureProbe(hq_index=i, t_hq_us=t, points=X[ia], lq_index=win, t_lq_us=s.t_lq_c[win], tracks=tracks,
+                            anchor=anchor, w_grad=w_grad[ia], patches=patches)
+
+
+#: Gaussian blur (px of the finer of the two colour images) before the photometric refinement; the
+#: coarser image gets the same blur in angle. Chosen on seeds 1001-1003 (session 9, ``extr`` notes).
+PATCH_BLUR_PX = 0.5
+
+
+def refine_probe_tracks(setup: PairSetup, probes: list[Probe], T_lqcolor_hqdepth: Transform, shift_us: np.ndarray) -> tuple[int, int]:
+    """Move each probe's LQ tracks to the photometrically refined keypoints, in place.
+
+    Per probe, the LQ colour frame of its window nearest the HQ instant plus the fitted shift
+    (``shift_us``, one per probe) is read again; every track moves by its keypoint's offset there
+    (:func:`align.features.refine_offsets`, patch shapes from ``T_lqcolor_hqdepth``). The frame
+    nearest the HQ instant, not the matching anchor: a moving surface looks most like the HQ patch
+    there (at a 55 ms shift the anchor frame's offsets put ``T_lq_hq`` 1.5 mm off in x). Keypoints
+    that cannot be refined lose their track (NaN): their SIFT positions carry the error the
+    refinement removes. Probes without patches are left alone. Returns ``(refined, dropped)``.
+    """
+    s = setup
+    T = T_lqcolor_hqdepth @ s.T_hqdepth_hqcolor
+    sigma = PATCH_BLUR_PX * max(1.0, s.K_lq_color.fx / s.K_hq_color.fx)
+    refined = dropped = 0
+    for p, d in zip(probes, np.asarray(shift_us, np.float64).reshape(-1)):
+        if getattr(p, "patches", None) is None or p.n_features == 0:
+            continue
+        j = int(np.argmin(np.abs(p.t_lq_us - (p.t_hq_us + d))))
+        rgb = s.session.read_color(s.lq, int(s.f_lq_c[p.lq_index[j]]), stream=s.lq_color)
+        off, ok = refine_offsets(p.patches, rgb, s.K_lq_color, T, p.tracks[j], sigma_px=sigma)
+        p.tracks += off[None]
+        p.tracks[:, ~ok] = np.nan
+        refined += int(ok.sum())
+        dropped += int((~ok).sum())
+    return refined, dropped
 
 
 #: Detection runs at full resolution when the default resize would keep more than this share of each
@@ -425,6 +472,12 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
     pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
     good = np.all(np.isfinite(pos), axis=1)
     fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init)
+    if opts.refine_features:  # the keypoints' own localisation error, then T_ex again
+        refine_probe_tracks(setup, probes, fit.T, shift.shift_at(np.array([p.t_hq_us for p in probes])))
+        loss = ShiftLoss(probes, fit.T, setup.K_lq_color, t0_us=shift.t0_us)
+        pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
+        good = np.all(np.isfinite(pos), axis=1)
+        fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=fit.T)
     T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
     pf = PairFit(setup=setup, shift=shift, fit=fit, T_lq_hq=T_lq_hq, probes=probes, feature_residuals_px=fit.residuals_px,
                  candidates=n_cand, seconds=time.perf_counter() - t_start)

@@ -41,8 +41,8 @@ cost) did not lower the reference's error (3.39 4.14 3.03 mm on seeds 1-3).
 find a third of the motion or less (seed 5's HQ frame 8: endpoint error 8.3 px of 12.6; no gain puts it
 back). Such a pair shows itself: its moving samples land on their own surface less often (0.60-0.73 of
 them at the best gain, against 0.77-0.87 elsewhere). Below ``FALLBACK_LANDED`` the pair's flow is found
-again at DIS's medium preset without its variational refinement (13 ms instead of 2.2 ms; 3 of 30 pairs on
-seeds 1-3), decided right after the gain vote (the failed flow's step 3, fill and expansion are not computed).
+again at DIS's medium preset without its variational refinement (14 ms instead of 2.2 ms; session 8: 3 of 30
+pairs on seeds 1-3; now 1 of 30 consecutive pairs of seed 1), decided right after the gain vote (the failed flow's step 3, fill and expansion are not computed).
 
 A trusted sample whose flow is under ``STILL_PX`` and whose depth changes by under ``STILL_DZ_M``
 stands still: motion 0 (moved by ``frac`` of under half a pixel the warp does not change; its depth

@@ -307,10 +307,11 @@ def test_a_pair_whose_flow_lands_off_its_surfaces_gets_the_finer_flow():
         if broken:  # the fast flow sends the moving body the wrong way
             fast = fm._flow
             fm._flow = lambda a, b: -fast(a, b)
-        return _mae(fm(0, 1, alpha), f["truth"], f["roi"]), calls, fm.scene_flow.last_landed
+        return _mae(fm(0, 1, alpha), f["truth"], f["roi"]), calls, fm.scene_flow.last_landed, fm.scene_flow.last_refined
 
-    good, calls_good, landed = reference(False)
-    assert not calls_good and landed[0] > 0.75 * landed[1]
-    bad, calls_bad, _ = reference(True)
+    good, calls_good, landed, refined = reference(False)
+    assert not calls_good and landed[0] > 0.75 * landed[1] and not refined
+    bad, calls_bad, _, refined = reference(True)
+    assert refined
     plain = _mae(warper(f["depth"][0]), f["truth"], f["roi"])
     assert calls_bad == [1] and bad < 0.5 * plain, (bad, good, plain)  # (~23 against 13 and 53 mm)

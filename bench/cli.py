@@ -153,6 +153,9 @@ def _add_corpus(sub) -> None:
                    "DDD's four-view corpus, one manifest entry per view)")
     p.add_argument("--no-report", dest="reports", action="store_false",
                    help="skip each sequence's alignment report (Markdown and figures)")
+    p.add_argument("--motion-model", choices=("edges", "flow"), default=None,
+                   help="the references' motion step, as align's (default: flow for lq-hq training corpora, the "
+                        "references SSDD trains against; align's default for multi-view rigs)")
     ex = p.add_mutually_exclusive_group()
     ex.add_argument("--jobs", type=_positive_int, metavar="N", help="local processes (default 1)")
     ex.add_argument("--workers", type=_positive_int, metavar="N", help="a local Dask cluster with N workers")
@@ -173,7 +176,8 @@ def _corpus(args) -> int:
         raise BenchError(f"--time-shifts-ms {args.time_shifts_ms!r}: expected numbers like -20,35") from None
     spec = CorpusSpec(seeds=args.seeds, scenes=tuple(s.strip() for s in args.scenes.split(",") if s.strip()),
                       seconds=args.seconds, scale=args.scale, time_shifts_ms=shifts, validation=args.validation,
-                      test=args.test, name=args.name, rig=args.rig, probes=args.probes, reports=args.reports)
+                      test=args.test, name=args.name, rig=args.rig, probes=args.probes, reports=args.reports,
+                      motion_model=args.motion_model)
     ex = ExecutorSpec(jobs=args.jobs or (None if (args.workers or args.scheduler) else 1), workers=args.workers,
                       scheduler=args.scheduler)
     res = make_corpus(args.out, spec, executor=ex, force=args.force, progress=args.progress)

@@ -15,6 +15,12 @@ says: this process, local processes, or a Dask cluster (paths must be shared), s
 SSDD-size corpus (51 sequences of 30 s) on a cluster. The folder is built aside and published when
 every sequence is done: a failure leaves nothing.
 
+The references of an ``lq-hq`` corpus are carried to the LQ instant with the ``flow`` motion model
+(:mod:`align.motion_flow`) unless ``motion_model`` says otherwise: they are what SSDD's eq. 32 trains against,
+and on moving surfaces the default ``edges`` step left them much further from the truth (one people sequence
+16 ms apart, reference - truth on moving pixels inside surfaces: +3.18 mm / 41.8 mm2 with ``edges``, +2.01 mm /
+14.7 mm2 with ``flow``; session 8's lead measurement, re-measured on corpora in docs/worklog, session 9).
+
 ``rig`` ``multiview4`` / ``multiview4-hq`` makes DDD's self-supervision corpus instead: four-view sessions
 aligned by the suite's multi-view alignment (``aligned/<name>/rig.json`` plus ``view0`` ... ``view3``),
 one manifest entry per view; a static-looking scene leaves the views' time shifts unobservable, which is
@@ -35,6 +41,8 @@ from bench.executors import ExecutorSpec
 from depthbench.fsutil import check_output_free, publish_directory, staging_dir_for
 
 MANIFEST = "training.json"
+#: the motion model of an lq-hq corpus's references unless the spec names one (see the module docstring)
+TRAINING_MOTION_MODEL = "flow"
 
 
 @dataclass(frozen=True)
@@ -58,8 +66,10 @@ class CorpusSpec:
     name: str = "sim-corpus"
     rig: str = "lq-hq"
     reports: bool = True
+    motion_model: str | None = None
 
     def check(self) -> "CorpusSpec":
+        from align.pair_reference import MOTION_MODELS
         from capture.sim import RIGS, SCENES
 
         if self.rig not in RIGS:
@@ -71,6 +81,8 @@ class CorpusSpec:
             raise BenchError(f"scene {bad[0] if bad else ''!r} unknown (choose from {', '.join(SCENES)})")
         if self.seconds <= 0 or self.scale <= 0:
             raise BenchError(f"seconds and scale must be positive, got {self.seconds}, {self.scale}")
+        if self.motion_model is not None and self.motion_model not in MOTION_MODELS:
+            raise BenchError(f"motion model {self.motion_model!r} unknown (choose from {', '.join(MOTION_MODELS)})")
         if self.validation < 0 or self.test < 0 or self.validation + self.test >= len(self.seeds):
             raise BenchError(f"{len(self.seeds)} sequences leave none for training with {self.validation} "
                              f"validation and {self.test} test sequences")
@@ -80,6 +92,12 @@ class CorpusSpec:
         n = len(self.seeds)
         n_train = n - self.validation - self.test
         return ["train"] * n_train + ["validation"] * self.validation + ["test"] * self.test
+
+    def resolved_motion_model(self) -> str | None:
+        """The motion model the alignments use (None: the alignment's default)."""
+        if self.motion_model is not None:
+            return self.motion_model
+        return TRAINING_MOTION_MODEL if self.rig == "lq-hq" else None
 
 
 @dataclass(frozen=True)
@@ -96,6 +114,7 @@ class SequenceTask:
     probes: int | None = None
     rig: str = "lq-hq"
     report: bool = True
+    motion_model: str | None = None
 
 
 def build_sequence(task: SequenceTask) -> dict:
@@ -109,6 +128,8 @@ def build_sequence(task: SequenceTask) -> dict:
             **({} if task.rig == "lq-hq" else {"on_unobservable": "flag"})}
     if task.probes is not None:
         opts["probes"] = task.probes
+    if task.motion_model is not None:
+        opts["motion_model"] = task.motion_model
     align_session(task.session, task.aligned, **opts)
     return {"scene": task.scene, "seed": task.seed, "time_shift_us": int(sim.time_shift_us)}
 
@@ -119,8 +140,10 @@ def _tasks(spec: CorpusSpec, work: Path) -> list[SequenceTask]:
         scene = spec.scenes[i % len(spec.scenes)]
         shift = round(spec.time_shifts_ms[i % len(spec.time_shifts_ms)] * 1000) if spec.time_shifts_ms else None
         name = f"{scene}-seed{seed}"
-        out.append(SequenceTask(seed, scene, spec.seconds, spec.scale, shift, str(work / "sessions" / name),
-                                str(work / "aligned" / name), spec.probes, spec.rig, spec.reports))
+        out.append(SequenceTask(seed=seed, scene=scene, seconds=spec.seconds, scale=spec.scale, time_shift_us=shift,
+                                session=str(work / "sessions" / name), aligned=str(work / "aligned" / name),
+                                probes=spec.probes, rig=spec.rig, report=spec.reports,
+                                motion_model=spec.resolved_motion_model()))
     return out
 
 

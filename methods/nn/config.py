@@ -145,13 +145,22 @@ class DataConfig:
             raise ValueError(f"data.num_workers must be >= 0, got {self.num_workers}")
 
 
+LR_SCHEDULES = ("constant", "cosine")
+
+
 @dataclasses.dataclass
 class OptimConfig:
-    """The optimisation: Adam with a fixed learning rate and a global batch of ``batch_size``.
+    """The optimisation: Adam with learning rate ``lr`` and a global batch of ``batch_size``.
 
     ``samples_per_epoch``: samples drawn per epoch (0: every sample once); ``seed`` fixes the
     initial weights, the sample order and the augmentations (one seed, same weights on CPU);
-    ``grad_clip``: clip the global gradient norm (0: off).
+    ``grad_clip``: clip the global gradient norm (0: off). ``lr_schedule``: ``"constant"`` (default)
+    or ``"cosine"``: step ``s`` of ``S`` in the whole run uses ``lr * (1 + cos(pi s / S)) / 2``
+    (:func:`methods.nn.trainer.step_lr`). Why: with a constant rate, Adam moves every weight by about
+    ``lr`` per step to the end, so a short run stops at a random point of that walk; for a residual
+    depth net the head's bias alone is a uniform offset of ``lr`` code units per step (SSDD's tiny: 2e-3
+    units of 10 cm = 0.2 mm), and the trained nets' offsets differed by 1-1.5 mm between models
+    trained alike (issue 10 worklog, session 9). Annealing to 0 ends the walk.
     """
 
     epochs: int = 4
@@ -161,8 +170,11 @@ class OptimConfig:
     samples_per_epoch: int = 0
     grad_clip: float = 0.0
     seed: int = 0
+    lr_schedule: str = "constant"
 
     def __post_init__(self) -> None:
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"optim.lr_schedule must be one of {', '.join(LR_SCHEDULES)}, got {self.lr_schedule!r}")
         for name in ("epochs", "batch_size"):
             if getattr(self, name) < 1:
                 raise ValueError(f"optim.{name} must be at least 1, got {getattr(self, name)}")

@@ -150,6 +150,15 @@ def _loader(ds: Dataset, batches, d: Dist, workers: int) -> DataLoader:
     return DataLoader(ds, batch_sampler=_Shard(batches, d), num_workers=workers)
 
 
+def step_lr(optim: OptimConfig, step: int, steps: int) -> float:
+    """The learning rate of global step ``step`` (0-based) of ``steps`` in the whole run
+    (:class:`methods.nn.config.OptimConfig`: ``lr_schedule``); a pure function of the step, so a resumed run
+    continues the schedule where it stopped."""
+    if optim.lr_schedule == "cosine":
+        return optim.lr * 0.5 * (1.0 + math.cos(math.pi * step / max(steps, 1)))
+    return optim.lr
+
+
 def _optimizer(model: nn.Module, optim: OptimConfig) -> torch.optim.Optimizer:
     return torch.optim.Adam(model.parameters(), lr=optim.lr, weight_decay=optim.weight_decay)
 
@@ -163,7 +172,7 @@ def _train_epoch(job: FitJob, net: nn.Module, opt, epoch: int, d: Dist, progress
     bar = tqdm(_loader(job.train, batches, d, job.num_workers), total=len(batches), file=sys.stderr,
                desc=f"{job.name} epoch {epoch + 1}/{job.optim.epochs}", unit="batch", leave=False,
                disable=None if (progress and d.main) else True, dynamic_ncols=True)
-    for batch in bar:
+    for i, batch in enumerate(bar):
         batch = _to(batch, d.device)
         opt.zero_grad(set_to_none=True)
         loss, parts = _split_loss(job.loss(net, batch))
@@ -173,6 +182,8 @@ def _train_epoch(job: FitJob, net: nn.Module, opt, epoch: int, d: Dist, progress
         loss.backward()
         if job.optim.grad_clip:
             nn.utils.clip_grad_norm_(net.parameters(), job.optim.grad_clip)
+        for group in opt.param_groups:
+            group["lr"] = step_lr(job.optim, epoch * len(batches) + i, job.optim.epochs * len(batches))
         opt.step()
         n = batch_len(batch)
         total += float(loss.detach()) * n
@@ -270,4 +281,4 @@ def write_history(folder: Path, history: list[dict], *, title: str) -> None:
     plot_curves(folder / CURVES, history, title=title)
 
 
-__all__ = ["FitJob", "FitResult", "fit", "seeded", "epoch_batches", "evaluate"]
+__all__ = ["FitJob", "FitResult", "fit", "seeded", "epoch_batches", "evaluate", "step_lr"]

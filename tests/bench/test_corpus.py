@@ -11,11 +11,19 @@ from bench.executors import ExecutorSpec
 from methods.nn.manifest import read_manifest
 
 
-def test_corpus_of_two_sequences_on_two_processes(tmp_path):
+@pytest.fixture(scope="module")
+def corpus(tmp_path_factory):
+    """Two sequences (people, balloons) made on two processes."""
     spec = CorpusSpec(seeds=(401, 402), scenes=("people", "balloons"), seconds=0.8, scale=0.5,
                       time_shifts_ms=(-20.0, 35.0), validation=1, probes=6, name="t", reports=False)
-    res = make_corpus(tmp_path / "c", spec, executor=ExecutorSpec(jobs=2), progress=False)
-    m = read_manifest(res.manifest)                      # every dataset present, checksums equal
+    tmp = tmp_path_factory.mktemp("corpus")
+    res = make_corpus(tmp / "c", spec, executor=ExecutorSpec(jobs=2), progress=False)
+    assert not any(p.name.endswith(".partial") for p in tmp.iterdir())
+    return res
+
+
+def test_corpus_of_two_sequences_on_two_processes(corpus):
+    m = read_manifest(corpus.manifest)                   # every dataset present, checksums equal
     assert [e.split for e in m.entries] == ["train", "validation"]
     assert [e.info["scene"] for e in m.entries] == ["people", "balloons"]
     assert [e.info["time_shift_us"] for e in m.entries] == [-20000, 35000]
@@ -27,7 +35,6 @@ def test_corpus_of_two_sequences_on_two_processes(tmp_path):
         assert e.dataset.meta["alignment"]["program"] == "depthbench align" and len(e.dataset) > 10
         assert not (e.dataset.root / "report.md").exists()      # reports=False reaches the alignment
         assert e.dataset.meta["motion"]["motion_model"] == "flow"  # a training corpus's default (module docstring)
-    assert not any(p.name.endswith(".partial") for p in tmp_path.iterdir())
 
 
 def test_corpus_refuses_bad_specs_before_work(tmp_path):
@@ -76,22 +83,21 @@ def _moving_reference_mse_mm2(ds) -> float:
     return float(np.mean(e ** 2) * 1e6)
 
 
-def test_a_training_corpus_carries_moving_references_closer_to_the_truth_than_the_edges_model(tmp_path):
+def test_a_training_corpus_carries_moving_references_closer_to_the_truth_than_the_edges_model(corpus, tmp_path):
     """The corpus aligns with the flow motion model by default; aligned again with the ``edges`` model (align's
-    default), the same session's references are further from the simulator's truth on moving surfaces."""
+    default), the same people session's references are further from the simulator's truth on moving surfaces."""
     from align.dataset import AlignedDataset
     from align.pipeline import align_session
 
-    spec = CorpusSpec(seeds=(411,), scenes=("people",), seconds=0.8, scale=0.5, validation=0, probes=6,
-                      reports=False)
-    assert spec.resolved_motion_model() == "flow"
+    assert CorpusSpec().resolved_motion_model() == "flow"
     assert CorpusSpec(rig="multiview4").resolved_motion_model() is None     # DDD's corpus: align's default
-    res = make_corpus(tmp_path / "c", spec, progress=False)
-    flow = read_manifest(res.manifest).entries[0].dataset
-    align_session(res.out / "sessions" / flow.root.name, tmp_path / "edges", probes=6, report=False,
+    flow = read_manifest(corpus.manifest).entries[0].dataset
+    assert flow.meta["motion"]["motion_model"] == "flow" and "people" in flow.root.name
+    align_session(corpus.out / "sessions" / flow.root.name, tmp_path / "edges", probes=6, report=False,
                   progress=False, motion_model="edges")
     edges = AlignedDataset(tmp_path / "edges")
     assert edges.meta["motion"]["motion_model"] == "edges" and flow.meta["T_lq_hq"] == edges.meta["T_lq_hq"]
-    assert _moving_reference_mse_mm2(flow) < 0.8 * _moving_reference_mse_mm2(edges)
+    # measured: 8.9 against 34.3 mm^2 (the corpus of session 9: 12.0 against 20.6 inside moving surfaces)
+    assert _moving_reference_mse_mm2(flow) < 0.5 * _moving_reference_mse_mm2(edges)
     with pytest.raises(BenchError, match="motion model 'nope' unknown"):
         make_corpus(tmp_path / "d", CorpusSpec(motion_model="nope"))

@@ -31,7 +31,7 @@ def test_table_i_has_the_seeds_columns_and_rows_with_our_means_beneath():
     assert rows[0][1:] == ["–", "73.25", "81.35", "239.06", "58.95", "–", "–"]
     ssdd = labels.index(next(l for l in labels if l.startswith("seed: SSDD [5]")))
     assert rows[ssdd][1:] == ["57.22", "56.39", "49.49", "57.08", "84.07", "31.61", "21.02"]
-    mse_truth = rows[labels.index("suite, vs truth: MSE (mm²)")]
+    mse_truth = rows[labels.index("suite, vs truth on the reference's pixels: MSE (mm²)")]
     for col, method in ((1, "raw"), (2, "bilateral"), (5, "ddd")):
         v = df[(df.method == method) & (df.reference == "truth") & (df.metric == "mse_mm2")]["value"].mean()
         assert mse_truth[col].startswith(f"{v:.2f} [")

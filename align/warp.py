@@ -84,6 +84,7 @@ class DepthWarper:
             source-grid steps, ``[0, 1)`` (step 4 above).
 
     Example:
+        >>> from capture.camera import Intrinsics, Transform
         >>> K = Intrinsics(8, 6, 10.0, 10.0, 3.5, 2.5)
         >>> w = DepthWarper(K, K, Transform.identity())
         >>> bool(np.allclose(w(np.full((6, 8), 2.0, np.float32)), 2.0))

@@ -1,6 +1,6 @@
 """Alignment accuracy against truth/ on simulated sessions: the "must show" table of issue 4.
 
-Run:  .venv/bin/python perf/align_accuracy.py [--scale 1.0] [--seconds 2] [--out DIR]
+Run:  .venv/bin/python perf/align_accuracy.py [--scale 1.0] [--seconds 2] [--out DIR] [--no-feature-refinement]
 
 Simulates (into ``--out``, default a temporary folder) lq-hq sessions with moving people or
 balloons at several seeds and true shifts across +-60 ms (including +-55 ms), one static session,
@@ -56,11 +56,13 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--out", help="keep sessions and datasets here")
     ap.add_argument("--no-multiview", action="store_true")
+    ap.add_argument("--no-feature-refinement", action="store_true",
+                    help="fit T_ex on the SIFT keypoints as detected (before session 9: z about +1.1 mm)")
     args = ap.parse_args()
     tmp = tempfile.TemporaryDirectory() if not args.out else None
     base = Path(args.out or tmp.name)
     base.mkdir(parents=True, exist_ok=True)
-    print(f"{'session':32s} {'Delta err us':>12s} {'1 sigma':>8s} {'T err mm':>9s} {'T err deg':>9s} "
+    print(f"{'session':32s} {'Delta err us':>12s} {'1 sigma':>8s} {'T err mm':>9s} {'x, y, z mm':>20s} {'T err deg':>9s} "
           f"{'warp-truth mm':>13s} {'HQ noise mm':>11s} {'s':>5s}")
     for scene, seed, shift in CASES:
         root = base / f"{scene}{seed}_{shift:+.1f}"
@@ -68,13 +70,15 @@ def main() -> None:
             simulate(root, rig="lq-hq", scene=scene, seconds=args.seconds, seed=seed, scale=args.scale,
                      time_shift_us=int(round(shift * 1000)), progress=False)
         t0 = time.perf_counter()
-        r = align_session(root, base / f"{root.name}.aligned", force=True, progress=False, report=False)
+        r = align_session(root, base / f"{root.name}.aligned", force=True, progress=False, report=False,
+                          refine_features=not args.no_feature_refinement)
         el = time.perf_counter() - t0
         tr = read_truth(root)
         dt, dr = r.T_lq_hq.error_to(tr.T_lq_hq)
+        dxyz = " ".join(f"{1e3 * v:+.2f}" for v in r.T_lq_hq.t - tr.T_lq_hq.t)  # z: every warped point's depth error
         we, hn = _warp_check(root, base / f"{root.name}.aligned")
         print(f"{root.name:32s} {r.shift.time_shift_us - tr.time_shift_us:+12.0f} {r.shift.std_us:8.0f} "
-              f"{1e3 * dt:9.2f} {dr:9.4f} {we:13.2f} {hn:11.2f} {el:5.0f}", flush=True)
+              f"{1e3 * dt:9.2f} {dxyz:>20s} {dr:9.4f} {we:13.2f} {hn:11.2f} {el:5.0f}", flush=True)
     root = base / "static"
     if not root.exists():
         simulate(root, rig="lq-hq", scene="people", seconds=args.seconds, seed=9, scale=args.scale,

@@ -336,8 +336,8 @@ def register(subparsers) -> None:
                    help=f"seconds of scene time to simulate (default {DemoConfig.seconds:g})")
     p.add_argument("--seed", type=int, default=0, help="random seed of the simulated scene and clocks (default 0)")
     p.add_argument("--time-shift-ms", type=float, default=25.0,
-                   help="clock shift between the sensors (default 25 ms; seed 0 would draw 59 ms, on the edge of "
-                        "the alignment's +-60 ms search, which alignment refuses)")
+                   help="clock shift between the sensors (default 25 ms, not the simulator's own draw for the seed, "
+                        "so that the demo's benchmark session stays the one its numbers were measured on)")
     p.add_argument("--scale", type=float, default=DemoConfig.scale,
                    help=f"image scale of the simulated sensors (default {DemoConfig.scale:g}: 320x240 LQ; 1 = 640x480)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")

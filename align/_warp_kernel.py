@@ -28,10 +28,27 @@ def store(buf, idx, val, prio, tmp, tmp_i):
 
 
 @njit
-def edge_value(a, b, frac, jac, lims, grads, wk):
+def diagonal_cuts(cxp, cyp, k, W, links):
+    """The quadrants cut at the diagonal, bits as :func:`align.warp_splat.diagonal_cuts`."""
+    cl, cr, cu, cd = links
+    q = 0
+    if cr > 0 and cd > 0 and not (cyp[k + 1 + W] > 0 or cxp[k + W + 1] > 0):
+        q |= 1
+    if cl > 0 and cd > 0 and not (cyp[k - 1 + W] > 0 or cxp[k + W] > 0):
+        q |= 2
+    if cr > 0 and cu > 0 and not (cyp[k + 1] > 0 or cxp[k - W + 1] > 0):
+        q |= 4
+    if cl > 0 and cu > 0 and not (cyp[k - 1] > 0 or cxp[k - W] > 0):
+        q |= 8
+    return q
+
+
+@njit
+def edge_value(a, b, frac, jac, lims, grads, wk, cuts, dlim):
     """An edge point's splat at offset (a, b): its inverse depth, or -1 when the target lies
     beyond the point's reach (one grid step towards a continuous neighbour, the edge reach towards
-    a discontinuous one, where the depth is held along that axis)."""
+    a discontinuous one, where the depth is held along that axis); and whether it lies past
+    ``|sx| + |sy| < dlim`` in a quadrant cut at the diagonal (it then fills nothing on its own)."""
     jxu, jxv, jyu, jyv = jac
     lxp, lxm, lyp, lym = lims
     cu_ = f32(f32(a) - frac[0])
@@ -39,7 +56,11 @@ def edge_value(a, b, frac, jac, lims, grads, wk):
     sx = f32(f32(jxu * cu_) + f32(jxv * cv_))
     sy = f32(f32(jyu * cu_) + f32(jyv * cv_))
     if not (sx < lxp and sx > lxm and sy < lyp and sy > lym):
-        return f32(-1)
+        return f32(-1), False
+    cut = False
+    if cuts != 0:
+        bit = (0 if sx > 0 else 1) + (0 if sy > 0 else 2)
+        cut = (cuts >> bit) & 1 and f32(abs(sx) + abs(sy)) >= dlim
     kx = not ((sx > 0 and lxp < 1) or (sx < 0 and lxm > -1))
     ky = not ((sy > 0 and lyp < 1) or (sy < 0 and lym > -1))
     val = f32(grads[0] * f32(sx * f32(kx)))
@@ -47,7 +68,7 @@ def edge_value(a, b, frac, jac, lims, grads, wk):
     val = f32(val + wk)
     if val < f32(1e-12):
         val = f32(1e-12)
-    return val
+    return val, cut
 
 
 @njit
@@ -68,18 +89,19 @@ def edge_setup(links, sums, idet, reach):
 
 
 @njit
-def splat_edge(buf, base, frac, links, sums, idet, wk, offs, Wp, tmp, tmp_i, reach):
+def splat_edge(buf, cbuf, base, frac, links, sums, idet, wk, offs, Wp, tmp, tmp_i, reach, cuts):
     """An edge point's splats: within reach of the point (see :func:`edge_value`)."""
     A, B, P = offs
     jac, lims, grads = edge_setup(links, sums, idet, reach)
+    dlim = f32(f32(1) + reach)
     for t in range(A.size):
-        val = edge_value(A[t], B[t], frac, jac, lims, grads, wk)
+        val, cut = edge_value(A[t], B[t], frac, jac, lims, grads, wk, cuts, dlim)
         if val >= f32(0):
-            store(buf, base + B[t] * Wp + A[t], val, P[t], tmp, tmp_i)
+            store(cbuf if cut else buf, base + B[t] * Wp + A[t], val, P[t], tmp, tmp_i)
 
 
 @numba.njit(cache=True, nogil=True)
-def kernel(buf, u, v, w, cxp, cyp, valid, geom, offs):
+def kernel(buf, cbuf, u, v, w, cxp, cyp, valid, geom, offs):
     """Steps 3-5 for every point (see :mod:`align.warp_numba`). The fast path (interior points,
     the whole block on the local plane) stays in the loop: moved into a helper function it runs
     4x slower (measured), where the rarer edge path costs nothing as a call."""
@@ -107,6 +129,8 @@ def kernel(buf, u, v, w, cxp, cyp, valid, geom, offs):
         gv = f32(f32(wy * ux) - f32(wx * uy))
         reach = max(f32(abs(vy) + abs(uy)), f32(abs(vx) + abs(ux))) * reach_scale
         fast = reach < adet and cl + cr + cu + cd == 4
+        cuts = diagonal_cuts(cxp, cyp, k, W, links) if cl + cr + cu + cd >= 2 else 0
+        fast = fast and cuts == 0
         fu = np.floor(u[k])
         fv = np.floor(v[k])
         fru = f32(u[k] - fu)
@@ -114,8 +138,8 @@ def kernel(buf, u, v, w, cxp, cyp, valid, geom, offs):
         base = np.int64(fv + r) * Wp + np.int64(fu + r)
         idet = f32(f32(1) / det)
         if not fast:
-            splat_edge(buf, base, (fru, frv), links, (ux, vx, wx, uy, vy, wy), idet, w[k], offs, Wp, tmp, tmp_i,
-                       edge_reach)
+            splat_edge(buf, cbuf, base, (fru, frv), links, (ux, vx, wx, uy, vy, wy), idet, w[k], offs, Wp, tmp, tmp_i,
+                       edge_reach, cuts)
             continue
         sgu = f32(gu * idet)
         sgv = f32(gv * idet)

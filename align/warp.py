@@ -24,8 +24,15 @@ For every source pixel ``p`` with depth ``d``:
    a continuous surface leaves no holes. Towards a discontinuous neighbour a point reaches only
    ``edge_reach`` of a step (0.5, the default: the edge is assumed at the midpoint) and holds its
    depth along that axis: nothing is extrapolated past the last sample of a surface, and no value
-   is ever a mix of two surfaces. ``edge_reach=0`` claims only what the samples cover: the
-   reference of the aligned dataset uses it (see :mod:`align.reference_edges` for why).
+   is ever a mix of two surfaces. Where both axis neighbours of a quadrant are on the point's
+   surface but the diagonal neighbour is linked to neither (a diagonal silhouette, or a missing
+   sample), the samples cover a triangle, not the square: past ``|dx| + |dy| < 1 + edge_reach``
+   grid steps the splat fills no pixel on its own (:func:`align.warp_splat.diagonal_cuts`), so a
+   near surface does not claim the far surface's corner one pixel past a diagonal silhouette; where
+   another splat lands there it still takes part in the z-test (:func:`align.warp_splat.merge_cut`:
+   the far samples the source saw just past the silhouette stay hidden behind the near surface).
+   ``edge_reach=0`` claims only what the samples cover: the reference of the aligned dataset uses it
+   (see :mod:`align.reference_edges` for why).
 5. Z-buffer (``np.maximum.at`` on an int64 key): the nearest surface wins (to ~2 % of depth);
    among splats of that surface a fixed priority of the splat offset decides, so the choice does
    not depend on the noisy values (taking the nearest of several noisy values of one surface
@@ -262,8 +269,7 @@ class DepthWarper:
             ws = {"cxp": np.zeros(N + 1, f32), "cyp": np.zeros(N + W, f32), "gxp": np.zeros(N + 1, f32),
                   "pair": np.zeros(N, bool), "row_link": not_row_end.ravel()[:-1] > 0,
                   "gyp": np.zeros(N + W, f32), "not_row_end": not_row_end.ravel()[:-1].copy(),
-                  "zkey": np.zeros(self.grid.padded_height * self.grid.padded_width + 2 * self.grid.padded_width
-                                   + 2 * self.k + 2, np.int64),
+                  "zkey": np.zeros(2 * self.grid.zbuffer_size(), np.int64),  # z-buffer, then the cut splats
                   "splat": {k: np.empty(N, t) for k, t in (
                       ("su", f32), ("sv", f32), ("fu", f32), ("fv", f32), ("base", f32), ("idet", f32), ("sgu", f32),
                       ("sgv", f32), ("ibase", np.intp), ("base_w", f32), ("val", f32), ("idx", np.intp),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from align.warp_splat import EMPTY_KEY, SourcePoints, SplatGrid
+from align.warp_splat import EMPTY_KEY, SourcePoints, SplatGrid, merge_cut
 
 _KERNEL: list = []
 
@@ -24,18 +24,22 @@ def have_numba() -> bool:
 
 
 def splat_numba(pts: SourcePoints, grid: SplatGrid, buf: np.ndarray) -> np.ndarray:
-    """Steps 3-5 for every valid point; ``buf`` is the z-buffer scratch (int64, at least padded size).
+    """Steps 3-5 for every valid point; ``buf`` is the z-buffer scratch (int64, two of
+    :meth:`SplatGrid.zbuffer_size`).
 
     Returns the destination depth ``(height, width)`` float32 metres, NaN where nothing landed.
     """
     buf.fill(EMPTY_KEY)
+    n = grid.zbuffer_size()
+    main, cut = buf[:n], buf[n:2 * n]   # the z-buffer and the splats of quadrants cut at the diagonal
     prio = grid.priorities()
     offs = (np.array([o[0] for o in grid.offsets], np.int64), np.array([o[1] for o in grid.offsets], np.int64),
             np.array([prio[o] for o in grid.offsets], np.int64))
     geom = (np.int64(pts.W), np.float32(grid.width), np.float32(grid.height), np.float32(grid.margin),
             np.float32(2 * (grid.k // 2)), np.int64(grid.padded_width), np.int64(grid.r), np.float32(grid.edge_reach))
-    _kernels()(buf, pts.u, pts.v, pts.w, pts.cxp, pts.cyp, pts.valid, geom, offs)
-    return grid.depth_from_keys(buf)
+    _kernels()(main, cut, pts.u, pts.v, pts.w, pts.cxp, pts.cyp, pts.valid, geom, offs)
+    merge_cut(main, cut)
+    return grid.depth_from_keys(main)
 
 
 def _kernels():

@@ -8,14 +8,16 @@ engine (:mod:`align.warp_numba`). Every step works on flat arrays over prealloca
   central difference inside, 1x the one-sided one at edges) of ``u, v, w``; per point the x sums
   share one factor and the y sums another; they cancel in ``J^-1 [wx, wy]``, so no division by
   the counts is needed. ``[gu, gv] = [wx, wy] J^-1`` is the gradient of ``w`` on the destination.
-* Fast path (step 4): interior points reaching less than one source-grid step over +-1
+* Fast path (step 4): interior points (all four diagonal neighbours linked through an axis
+  neighbour too, :func:`align.warp_splat.diagonal_cuts`) reaching less than one source-grid step over +-1
   destination pixel (destination not coarser than the source there; ``J^-1 = 2 S^-1`` for the
   sums ``S``) cover their ``k x k`` block unconditionally -- almost every point.
 * Edge path: the rest (edge points, and interior points of strongly compressed surfaces), few: a
   pixel is covered when it lies within one grid step towards a continuous neighbour, or within the
   edge reach (``grid.edge_reach`` of a step; 0.5: the edge assumed at the midpoint) towards a
   discontinuous one -- there with the point's own depth, so nothing is extrapolated past the
-  last sample of a surface.
+  last sample of a surface; in a quadrant cut at the diagonal, past ``|dx| + |dy| < 1 + reach``, a
+  splat fills nothing on its own (``merge_cut``).
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from align.warp_splat import EMPTY_KEY, HI_HALF, LO_HALF, SourcePoints, SplatGrid
+from align.warp_splat import EMPTY_KEY, HI_HALF, LO_HALF, SourcePoints, SplatGrid, diagonal_cuts, merge_cut
 
 f32 = np.float32
 
@@ -47,6 +49,7 @@ class _Plane:
     ok: np.ndarray
     fast: np.ndarray
     buf: np.ndarray  # the z-buffer (int64 keys)
+    cut: np.ndarray  # the splats of quadrants cut at the diagonal (merge_cut)
 
 
 def splat_numpy(pts: SourcePoints, grid: SplatGrid, ws: dict) -> np.ndarray:
@@ -54,8 +57,10 @@ def splat_numpy(pts: SourcePoints, grid: SplatGrid, ws: dict) -> np.ndarray:
     metres, NaN where nothing landed."""
     pl = _local_plane(pts, grid, ws)
     pl.buf.fill(EMPTY_KEY)
+    pl.cut.fill(EMPTY_KEY)
     _splat_fast(pts, grid, pl, ws)
     _splat_edges(pts, grid, pl)
+    merge_cut(pl.buf, pl.cut)
     return grid.depth_from_keys(pl.buf)
 
 
@@ -111,9 +116,11 @@ def _local_plane(pts: SourcePoints, grid: SplatGrid, ws: dict) -> _Plane:
     inside = (u > -m) & (u < grid.width + m) & (v > -m) & (v < grid.height + m)
     ok &= inside
     fast &= inside
+    cand = np.flatnonzero(fast)
+    fast[cand[diagonal_cuts(pts, cand) != 0]] = False  # a diagonal neighbour on another surface: edge path
     ok &= ~fast  # ok: the edge path's points from here on
     return _Plane(ux=ux, uy=uy, vx=vx, vy=vy, wx=wx, wy=wy, det=det, gu=gu, gv=gv, nx=nx, ny=ny, ok=ok, fast=fast,
-                  buf=ws["zkey"])
+                  buf=ws["zkey"][:grid.zbuffer_size()], cut=ws["zkey"][grid.zbuffer_size():2 * grid.zbuffer_size()])
 
 
 def _splat_setup(sel, pts: SourcePoints, grid: SplatGrid, pl: _Plane, scratch=None):
@@ -209,6 +216,10 @@ def _splat_edges(pts: SourcePoints, grid: SplatGrid, pl: _Plane) -> None:
     sx = ejxu * cu_ + ejxv * cv_
     sy = ejyu * cu_ + ejyv * cv_
     take = (sx < lxp) & (sx > lxm) & (sy < lyp) & (sy > lym)
+    # a quadrant whose diagonal neighbour is on another surface: the triangle only (diagonal_cuts)
+    bit = (sx <= 0).astype(np.int64) + 2 * (sy <= 0).astype(np.int64)
+    cut = ((diagonal_cuts(pts, e)[None, :] >> bit) & 1).astype(bool)
+    cut &= (np.abs(sx) + np.abs(sy)) >= f32(1) + h
     # beyond the last sample towards a discontinuous neighbour the depth is held constant
     # along that grid axis; along a continuous axis the local plane still applies
     keep_x = ~(((sx > 0) & (lxp < 1)) | ((sx < 0) & (lxm > -1)))
@@ -219,6 +230,7 @@ def _splat_edges(pts: SourcePoints, grid: SplatGrid, pl: _Plane) -> None:
     np.maximum(val, f32(1e-12), out=val)
     off = (B * Wp + A).astype(np.intp)
     trash = grid.padded_height * Wp  # this cell absorbs masked-out targets
-    idx = np.where(take, eidx + off, trash).ravel()
     p = np.repeat(np.array([prio[o] for o in grid.offsets], np.int32), take.shape[1])
-    np.maximum.at(pl.buf, idx, _key(val.ravel(), p))
+    keys = _key(val.ravel(), p)
+    for buf, sel in ((pl.buf, take & ~cut), (pl.cut, take & cut)):
+        np.maximum.at(buf, np.where(sel, eidx + off, trash).ravel(), keys)

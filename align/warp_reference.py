@@ -34,6 +34,7 @@ class _Grid:
     v: np.ndarray
     w: np.ndarray
     edge_rel: float
+    dst_shape: tuple = (0, 0)
 
     def inside(self, i, j) -> bool:
         H, W = self.d.shape
@@ -95,8 +96,9 @@ def _project_all(d, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, 
     return _Grid(d, u, v, w, edge_rel)
 
 
-def _splat(g: _Grid, i: int, j: int, offsets, prio, zbuf, zkeys, edge_reach: float) -> None:
-    """Splat point (i, j) onto the z-buffer (``zkeys``: (row, col) -> key)."""
+def _splat(g: _Grid, i: int, j: int, offsets, prio, zkeys, zcut, edge_reach: float) -> None:
+    """Splat point (i, j) onto the z-buffer (``zkeys``: (row, col) -> (key, w)); the splats past the triangle
+    of a quadrant cut at the diagonal go to ``zcut`` (they count only where another splat landed)."""
     grads, conts = g.gradients(i, j)
     (nx, gx), (ny, gy) = grads
     if nx == 0 or ny == 0:
@@ -106,8 +108,13 @@ def _splat(g: _Grid, i: int, j: int, offsets, prio, zbuf, zkeys, edge_reach: flo
         return
     Jinv = np.linalg.inv(J)
     lim = {(ax, s): 1.0 if conts[ax][(s + 1) // 2] else edge_reach for ax in (0, 1) for s in (-1, 1)}
+    # a quadrant whose axis neighbours are linked but whose diagonal neighbour is linked to neither:
+    # the samples cover the triangle, |dx| + |dy| < 1 + edge_reach (align.warp_splat.diagonal_cuts)
+    cut = {(sx, sy): lim[(0, sx)] == 1 and lim[(1, sy)] == 1
+           and not (g.cont(i, j + sx, i + sy, j + sx) or g.cont(i + sy, j, i + sy, j + sx))
+           for sx in (-1, 1) for sy in (-1, 1)}
     fu, fv = math.floor(g.u[i, j]), math.floor(g.v[i, j])
-    Hd, Wd = zbuf.shape
+    Hd, Wd = g.dst_shape
     for a, b in offsets:
         delta = Jinv @ np.array([fu + a - g.u[i, j], fv + b - g.v[i, j]])  # source-grid offset of the target
         inside, val = True, g.w[i, j]
@@ -117,12 +124,14 @@ def _splat(g: _Grid, i: int, j: int, offsets, prio, zbuf, zkeys, edge_reach: flo
                 inside = False
             if lim[(ax, side)] == 1:  # towards a continuous neighbour: local plane
                 val += gr[2] * delta[ax]
+        beyond = cut[(1 if delta[0] > 0 else -1, 1 if delta[1] > 0 else -1)] and \
+            abs(delta[0]) + abs(delta[1]) >= 1 + edge_reach
         tu, tv = fu + a, fv + b
         if inside and 0 <= tu < Wd and 0 <= tv < Hd:
             kv = zkey(max(val, 1e-12), prio[(a, b)])
-            if (tv, tu) not in zkeys or kv > zkeys[(tv, tu)]:
-                zkeys[(tv, tu)] = kv
-                zbuf[tv, tu] = val
+            keys = zcut if beyond else zkeys   # past the triangle: fills nothing on its own
+            if (tv, tu) not in keys or kv > keys[(tv, tu)][0]:
+                keys[(tv, tu)] = (kv, val)
 
 
 def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics, T_dst_src: Transform, *,
@@ -137,14 +146,19 @@ def warp_depth_loop(depth_src: np.ndarray, K_src: Intrinsics, K_dst: Intrinsics,
     offsets = splat_offsets(k)
     prio = splat_priorities(offsets)
     g = _project_all(np.asarray(depth_src, dtype=np.float64), K_src, K_dst, T_dst_src, edge_rel)
-    zbuf = np.zeros(K_dst.shape)
+    g.dst_shape = K_dst.shape
     zkeys: dict = {}
+    zcut: dict = {}
     for i in range(H):
         for j in range(W):
             if g.w[i, j] > 0:
-                _splat(g, i, j, offsets, prio, zbuf, zkeys, edge_reach)
+                _splat(g, i, j, offsets, prio, zkeys, zcut, edge_reach)
     out = np.full(K_dst.shape, np.nan, np.float32)
-    out[zbuf > 0] = (1.0 / zbuf[zbuf > 0]).astype(np.float32)
+    for (tv, tu), (kv, val) in zkeys.items():
+        if (tv, tu) in zcut and zcut[(tv, tu)][0] > kv:
+            val = zcut[(tv, tu)][1]
+        if val > 0:
+            out[tv, tu] = np.float32(1.0 / val)
     return out
 
 

@@ -76,6 +76,10 @@ class SplatGrid:
         """A point whose block can touch the image lies within this many pixels of it."""
         return self.k // 2 + 1
 
+    def zbuffer_size(self) -> int:
+        """Cells of one z-buffer: the padded image, a spare row pair and a trash cell."""
+        return self.padded_height * self.padded_width + 2 * self.padded_width + 2 * self.k + 2
+
     def priorities(self) -> dict:
         return splat_priorities(self.offsets)
 
@@ -84,6 +88,39 @@ class SplatGrid:
         Wp = self.padded_width
         wv = buf[:self.padded_height * Wp].view(np.int32)[LO_HALF::2].view(np.float32)
         return np.divide(np.float32(1), wv).reshape(self.padded_height, Wp)[self.r:-self.r, self.r:-self.r]
+
+
+#: the quadrants of a point's splat, as bits of :func:`diagonal_cuts`: (x side, y side) -> bit
+QUADRANT_BITS = {(1, 1): 1, (-1, 1): 2, (1, -1): 4, (-1, -1): 8}
+
+
+def diagonal_cuts(pts: "SourcePoints", sel: np.ndarray) -> np.ndarray:
+    """Per selected point (flat indices ``sel``), the quadrants of its splat cut at the diagonal, as bits
+    (:data:`QUADRANT_BITS`): both axis neighbours of the quadrant are linked to the point but the
+    diagonal neighbour is linked to neither of them (another surface, or no sample). The point's splat
+    there covers on its own only ``|sx| + |sy| < 1 + edge_reach`` (source-grid steps; step 4 of :mod:`align.warp`):
+    the samples cover the triangle, not the square, so a surface ends at a diagonal silhouette instead
+    of claiming the far surface's corner one pixel past it. ``(n,)`` int64."""
+    W, cx, cy = pts.W, pts.cxp, pts.cyp
+    sel = np.asarray(sel, np.int64)
+
+    def t(a, idx):
+        return np.take(a, idx, mode="clip") > 0   # out-of-grid indices occur only where a side link is 0
+
+    cl, cr, cu, cd = cx[sel] > 0, cx[sel + 1] > 0, cy[sel] > 0, cy[sel + W] > 0
+    q = ((cr & cd & ~(t(cy, sel + 1 + W) | t(cx, sel + W + 1))).astype(np.int64),
+         (cl & cd & ~(t(cy, sel - 1 + W) | t(cx, sel + W))).astype(np.int64),
+         (cr & cu & ~(t(cy, sel + 1) | t(cx, sel - W + 1))).astype(np.int64),
+         (cl & cu & ~(t(cy, sel - 1) | t(cx, sel - W))).astype(np.int64))
+    return q[0] | (q[1] << 1) | (q[2] << 2) | (q[3] << 3)
+
+
+def merge_cut(buf: np.ndarray, cut: np.ndarray) -> None:
+    """Add the splats of the quadrants cut at the diagonal (``cut``, keys like ``buf``) to the z-buffer ``buf``,
+    in place, where another splat landed: there they take part in the z-test (a near surface still hides
+    the far samples the source camera saw past its silhouette, within one grid step of it), but on their
+    own they fill nothing (no sample covers that corner)."""
+    np.maximum(buf, cut, out=buf, where=buf != EMPTY_KEY)
 
 
 @dataclass

@@ -201,3 +201,48 @@ def test_motion_moves_the_points_before_the_splat():
     gone[:, : dh.shape[1] // 2] = np.nan  # NaN displacement: the point is dropped
     c = W(dh, motion=gone)
     assert np.isfinite(c).sum() < 0.75 * np.isfinite(a).sum()
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba", "loop"])
+@pytest.mark.parametrize("scale,edge_reach", [(1.3, 0.0), (1.9, 0.0), (1.9, 0.5)])
+def test_a_surface_ends_at_a_diagonal_silhouette(engine, scale, edge_reach):
+    """A near plane whose samples end on the diagonal i + j = c over a far plane: the near samples cover
+    the half-plane x + y <= c of the source grid. The near surface reaches at most ``edge_reach`` steps past
+    its last samples along each axis (x + y < c + 2 edge_reach), never into the far surface's corner of a
+    grid square whose diagonal sample is far (before the diagonal cut it reached x + y = c + 1.05 at 1.9x with
+    edge_reach 0): there nothing lands but its own splat past the triangle, which fills nothing alone;
+    and it still covers everything well inside."""
+    Ks = Intrinsics(40, 40, 50.0, 50.0, 19.5, 19.5)
+    W = int(40 * scale)
+    Kd = Intrinsics(W, W, 50.0 * scale, 50.0 * scale, (W - 1) / 2 + 0.3, (W - 1) / 2 + 0.15)  # sub-pixel offset
+    i, j = np.mgrid[0:40, 0:40]
+    c = 39
+    d = np.where(i + j <= c, 1.0, 2.0).astype(np.float32)
+    if engine == "loop":
+        out = warp_depth_loop(d, Ks, Kd, Transform.identity(), edge_reach=edge_reach)
+    else:
+        out = DepthWarper(Ks, Kd, Transform.identity(), engine=engine, edge_reach=edge_reach)(d)
+    v, u = np.mgrid[0:W, 0:W]
+    x = (u - Kd.cx) / scale + Ks.cx   # the destination pixel centre on the source grid (identity pose: affine)
+    y = (v - Kd.cy) / scale + Ks.cy
+    inner = (x > 1) & (y > 1) & (x < 38) & (y < 38)
+    near = np.isclose(out, 1.0)
+    assert near[inner & (x + y < c - 1)].all()
+    assert np.isclose(out[inner & (x + y > c + 2)], 2.0).all()
+    assert (x + y)[near & inner].max() < c + 2 * edge_reach + 1e-4
+
+
+def test_cut_splats_take_part_in_the_z_test_but_fill_nothing_alone():
+    """A splat past the triangle of a quadrant cut at the diagonal: where a farther surface's splat landed, the
+    nearer one still wins (the far samples seen just past a silhouette stay hidden); where nothing else landed
+    the pixel stays empty; where a nearer splat landed, that one wins."""
+    from align.warp_splat import EMPTY_KEY, merge_cut, zkey
+
+    def key(w):
+        hi, prio, lo = zkey(w, 1)
+        return np.array([(hi << 8 | prio) << 32 | (lo & 0xFFFFFFFF)], np.int64)[0]
+
+    buf = np.array([EMPTY_KEY, key(0.5), key(2.0)], np.int64)
+    cut = np.array([key(1.0), key(1.0), key(1.0)], np.int64)
+    merge_cut(buf, cut)
+    assert buf.tolist() == [EMPTY_KEY, key(1.0), key(2.0)]

@@ -164,7 +164,10 @@ The ratio falls on every held-out session (paired bootstrap over frames, footpri
 ``notes/refedge9_scripts/paired_ratio.py``), so it is the default (``strict-fg`` was, for part of session 9).
 With the photometric keypoint refinement of T_lq_hq (its +1.1 mm z error gone; the MAE falls, so the ratio rises):
 demo strict-fg 4.11 [3.22, 4.98] at 1.35 %, footprint-fg 3.44 [2.66, 4.32] at 1.54 % (paired -0.67 [-1.18, -0.21]);
-the 27 pixels left > 0.3 m off are all of the second kind. Truth's geometry (``perf/reference_error.py demo
+the 27 pixels left > 0.3 m off are all of the second kind. With the warp's diagonal cut (:mod:`align.warp`
+step 4, :func:`align.warp_splat.diagonal_cuts`) 3.10 [2.41, 3.92] at 1.50 % (paired -0.34 [-0.76, -0.03]; held
+out seed 1 4.66 -> 4.57, seed 2 3.57 -> 3.38, seed 4 2.96 -> 2.84, each paired interval below 0); 6 of those 27
+became holes, 21 are left. Truth's geometry (``perf/reference_error.py demo
 --frames 30``): strict-fg 4.29 at 1.28 %, footprint-fg 3.67 at 1.45 %.
 Cost: :func:`footprint_occluders` 2.0 ms CPU per demo frame beside the plain warp's 2.2 ms; ``align`` of the
 demo 21.7 CPU-s against 21.9 with ``strict-fg`` (one run each, noise ~1 s).

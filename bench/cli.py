@@ -156,6 +156,8 @@ def _add_corpus(sub) -> None:
     p.add_argument("--motion-model", choices=("edges", "flow"), default=None,
                    help="the references' motion step, as align's (default: flow for lq-hq training corpora, the "
                         "references SSDD trains against; align's default for multi-view rigs)")
+    p.add_argument("--reference-edges", default=None, metavar="RULE",
+                   help="the references' edge rule, as align's (default: align's)")
     ex = p.add_mutually_exclusive_group()
     ex.add_argument("--jobs", type=_positive_int, metavar="N", help="local processes (default 1)")
     ex.add_argument("--workers", type=_positive_int, metavar="N", help="a local Dask cluster with N workers")
@@ -177,7 +179,7 @@ def _corpus(args) -> int:
     spec = CorpusSpec(seeds=args.seeds, scenes=tuple(s.strip() for s in args.scenes.split(",") if s.strip()),
                       seconds=args.seconds, scale=args.scale, time_shifts_ms=shifts, validation=args.validation,
                       test=args.test, name=args.name, rig=args.rig, probes=args.probes, reports=args.reports,
-                      motion_model=args.motion_model)
+                      motion_model=args.motion_model, reference_edges=args.reference_edges)
     ex = ExecutorSpec(jobs=args.jobs or (None if (args.workers or args.scheduler) else 1), workers=args.workers,
                       scheduler=args.scheduler)
     res = make_corpus(args.out, spec, executor=ex, force=args.force, progress=args.progress)

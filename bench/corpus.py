@@ -52,7 +52,10 @@ class CorpusSpec:
     ``time_shifts_ms``: empty = drawn by the simulator within +-60 ms from each seed. ``scale``:
     image size factor (0.5: 320x240 LQ). ``validation`` / ``test``: sequences in those splits.
     ``probes``: HQ frames the alignment fits (None: its default). ``reports``: each sequence's
-    alignment report (Markdown and figures, a few CPU-seconds per sequence).
+    alignment report (Markdown and figures, a few CPU-seconds per sequence). ``motion_model``: the
+    alignment's motion step for the references (None: ``flow`` for the ``lq-hq`` rig, the training
+    corpora of SSDD and DDRNet; the alignment's own default for multi-view rigs). ``reference_edges``:
+    the alignment's reference edge rule (None: its default; :mod:`align.reference_edges`).
     """
 
     seeds: tuple[int, ...] = (101, 102, 103, 104, 105)
@@ -67,9 +70,11 @@ class CorpusSpec:
     rig: str = "lq-hq"
     reports: bool = True
     motion_model: str | None = None
+    reference_edges: str | None = None
 
     def check(self) -> "CorpusSpec":
         from align.pair_reference import MOTION_MODELS
+        from align.reference_edges import RULES
         from capture.sim import RIGS, SCENES
 
         if self.rig not in RIGS:
@@ -83,6 +88,8 @@ class CorpusSpec:
             raise BenchError(f"seconds and scale must be positive, got {self.seconds}, {self.scale}")
         if self.motion_model is not None and self.motion_model not in MOTION_MODELS:
             raise BenchError(f"motion model {self.motion_model!r} unknown (choose from {', '.join(MOTION_MODELS)})")
+        if self.reference_edges is not None and self.reference_edges not in RULES:
+            raise BenchError(f"reference edge rule {self.reference_edges!r} unknown (choose from {', '.join(RULES)})")
         if self.validation < 0 or self.test < 0 or self.validation + self.test >= len(self.seeds):
             raise BenchError(f"{len(self.seeds)} sequences leave none for training with {self.validation} "
                              f"validation and {self.test} test sequences")
@@ -115,6 +122,7 @@ class SequenceTask:
     rig: str = "lq-hq"
     report: bool = True
     motion_model: str | None = None
+    reference_edges: str | None = None
 
 
 def build_sequence(task: SequenceTask) -> dict:
@@ -130,6 +138,8 @@ def build_sequence(task: SequenceTask) -> dict:
         opts["probes"] = task.probes
     if task.motion_model is not None:
         opts["motion_model"] = task.motion_model
+    if task.reference_edges is not None:
+        opts["reference_edges"] = task.reference_edges
     align_session(task.session, task.aligned, **opts)
     return {"scene": task.scene, "seed": task.seed, "time_shift_us": int(sim.time_shift_us)}
 
@@ -143,7 +153,7 @@ def _tasks(spec: CorpusSpec, work: Path) -> list[SequenceTask]:
         out.append(SequenceTask(seed=seed, scene=scene, seconds=spec.seconds, scale=spec.scale, time_shift_us=shift,
                                 session=str(work / "sessions" / name), aligned=str(work / "aligned" / name),
                                 probes=spec.probes, rig=spec.rig, report=spec.reports,
-                                motion_model=spec.resolved_motion_model()))
+                                motion_model=spec.resolved_motion_model(), reference_edges=spec.reference_edges))
     return out
 
 

@@ -15,7 +15,8 @@ from methods.nn.manifest import read_manifest
 def corpus(tmp_path_factory):
     """Two sequences (people, balloons) made on two processes."""
     spec = CorpusSpec(seeds=(401, 402), scenes=("people", "balloons"), seconds=0.8, scale=0.5,
-                      time_shifts_ms=(-20.0, 35.0), validation=1, probes=6, name="t", reports=False)
+                      time_shifts_ms=(-20.0, 35.0), validation=1, probes=6, name="t", reports=False,
+                      reference_edges="strict")
     tmp = tmp_path_factory.mktemp("corpus")
     res = make_corpus(tmp / "c", spec, executor=ExecutorSpec(jobs=2), progress=False)
     assert not any(p.name.endswith(".partial") for p in tmp.iterdir())
@@ -35,6 +36,7 @@ def test_corpus_of_two_sequences_on_two_processes(corpus):
         assert e.dataset.meta["alignment"]["program"] == "depthbench align" and len(e.dataset) > 10
         assert not (e.dataset.root / "report.md").exists()      # reports=False reaches the alignment
         assert e.dataset.meta["motion"]["motion_model"] == "flow"  # a training corpus's default (module docstring)
+        assert e.dataset.meta["reference_edges"]["rule"] == "strict"   # the spec's rule reaches the alignment
 
 
 def test_corpus_refuses_bad_specs_before_work(tmp_path):
@@ -42,6 +44,8 @@ def test_corpus_refuses_bad_specs_before_work(tmp_path):
         make_corpus(tmp_path / "c", CorpusSpec(seeds=(1, 2), validation=1, test=1))
     with pytest.raises(BenchError, match="unknown"):
         make_corpus(tmp_path / "c", CorpusSpec(scenes=("nope",)))
+    with pytest.raises(BenchError, match="reference edge rule 'nope' unknown"):
+        make_corpus(tmp_path / "c", CorpusSpec(reference_edges="nope"))
     with pytest.raises(BenchError, match="rig 'nope' unknown"):
         make_corpus(tmp_path / "c", CorpusSpec(rig="nope"))
     assert not (tmp_path / "c").exists()
@@ -94,7 +98,7 @@ def test_a_training_corpus_carries_moving_references_closer_to_the_truth_than_th
     flow = read_manifest(corpus.manifest).entries[0].dataset
     assert flow.meta["motion"]["motion_model"] == "flow" and "people" in flow.root.name
     align_session(corpus.out / "sessions" / flow.root.name, tmp_path / "edges", probes=6, report=False,
-                  progress=False, motion_model="edges")
+                  progress=False, motion_model="edges", reference_edges="strict")
     edges = AlignedDataset(tmp_path / "edges")
     assert edges.meta["motion"]["motion_model"] == "edges" and flow.meta["T_lq_hq"] == edges.meta["T_lq_hq"]
     # measured: 8.9 against 34.3 mm^2 (the corpus of session 9: 12.0 against 20.6 inside moving surfaces)

@@ -20,6 +20,14 @@ def register(subparsers) -> None:
     p.add_argument("session", metavar="SESSION", help="session folder (capture format)")
     p.add_argument("--out", required=True, metavar="ALIGNED", help="aligned dataset folder to create")
     p.add_argument("--force", action="store_true", help="replace ALIGNED if it exists")
+    _time_group(p)
+    _space_group(p)
+    _model_groups(p)
+    _output_group(p)
+    p.set_defaults(func=run)
+
+
+def _time_group(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("time")
     g.add_argument("--shift-range-ms", type=float, default=60.0, metavar="MS",
                    help="search the shift in [-MS, +MS] (default: %(default)g)")
@@ -37,6 +45,9 @@ def register(subparsers) -> None:
                         "shift or 0, flagged as unobservable, instead of stopping with an error")
     g.add_argument("--no-dejitter", action="store_true",
                    help="use the raw host stamps (default: regularised against the frame counters)")
+
+
+def _space_group(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("space")
     g.add_argument("--features", choices=FEATURES, default="sift", help="colour feature detector (default: %(default)s)")
     g.add_argument("--max-features", type=int, default=1500, metavar="N", help="keypoints per image (default: %(default)s)")
@@ -59,6 +70,9 @@ def register(subparsers) -> None:
                         "mixed but only where the reference is in front of the background, i.e. in the ROI; footprint-fg also masks "
                         "what lies behind the footprint of any HQ sample at an edge, the ones the warp drops included "
                         "(default: %(default)s)")
+
+
+def _model_groups(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("effects (the alignment loop, align/loop)")
     g.add_argument("--no-loop", action="store_true",
                    help="skip the effect loop (drift, rolling shutter, lens, depth scale/offset, duplicated frames)")
@@ -83,12 +97,14 @@ def register(subparsers) -> None:
                    help="find a view's time shift against the rig's reference from the depth of what moves, given the "
                         "calibrated rig (align/view_sync.py): where colour features could not, for every view, or never "
                         "(default: %(default)s)")
+
+
+def _output_group(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("output")
     g.add_argument("--no-truth", action="store_true", help="do not attach the simulator's truth depth (simulated sessions)")
     g.add_argument("--no-report", action="store_true", help="skip report.md and the figures")
     g.add_argument("--workers", type=int, default=2, metavar="N", help="threads for feature work (default: %(default)s)")
     g.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -46,7 +46,8 @@ class _SSDDBase(LearnedDenoiser):
     defaults = {"weights": None, "fill_holes": False, "allow_train_frames": False}
     param_help = _HELP
     # the paper's SSDD is the default of each: level 1 on the raw LQ depth, level 2 without motion, eq. 32 ungated
-    not_in_paper = ("level1.prefilter.kind", "level2.motion.kind", "level1.gate.sigmas", "level2.gate.sigmas")
+    not_in_paper = ("level1.prefilter.kind", "level2.motion.kind", "level1.gate.sigmas", "level2.gate.sigmas",
+                    "level2.level1_input")
 
     @staticmethod
     def schema():

@@ -46,7 +46,7 @@ from tqdm import tqdm
 from align.association import associate, nearest_mapping, overlap_us
 from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
-from align.extrinsics import ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
+from align.extrinsics import MIN_POINTS, ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
 from align.features import FEATURES, Patches, detect, hq_patches, inverse_depth_gradient, lift, match, refine_offsets, track
 from align.motion import motion_summary
 from align.pair_reference import MOTION_MODELS, PairReferences, ReferenceOptions
@@ -352,6 +352,12 @@ class ProbeBuilder:
 PATCH_BLUR_PX = 0.5
 
 
+#: the share of the first fit's correspondences the photometric refinement must place for ``T_ex`` to be fitted
+#: again on them; below it (views of a multi-view rig that see one another's texture at other scales, where
+#: few patches settle: the demo's four-view rig kept 2) the first fit stands
+REFINE_MIN_KEPT = 0.25
+
+
 def refine_probe_tracks(setup: PairSetup, probes: list[Probe], T_lqcolor_hqdepth: Transform, shift_us: np.ndarray) -> tuple[int, int]:
     """Move each probe's LQ tracks to the photometrically refined keypoints, in place.
 
@@ -480,8 +486,12 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
         refine_probe_tracks(setup, refined, fit.T, shift.shift_at(np.array([p.t_hq_us for p in refined])))
         loss = ShiftLoss(refined, fit.T, setup.K_lq_color, t0_us=shift.t0_us)
         pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
-        good = np.all(np.isfinite(pos), axis=1)
-        fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=fit.T)
+        kept = np.all(np.isfinite(pos), axis=1)
+        if kept.sum() >= max(MIN_POINTS, REFINE_MIN_KEPT * good.sum()):
+            fit = fit_extrinsics(loss.points[kept], pos[kept], setup.K_lq_color, T_init=fit.T)
+        else:
+            log.warning("%s: the feature refinement placed only %d of %d keypoints; T_ex stays the fit of the keypoints "
+                        "as detected", setup.session.root, int(kept.sum()), int(good.sum()))
     T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
     pf = PairFit(setup=setup, shift=shift, fit=fit, T_lq_hq=T_lq_hq, probes=probes, feature_residuals_px=fit.residuals_px,
                  candidates=n_cand, seconds=time.perf_counter() - t_start)

@@ -72,8 +72,12 @@ def test_drawn_time_shifts_stay_inside_aligns_search_range():
     estimated 0.65 ms further out, and refused. They still spread uniformly over the rest of the range."""
     from align.time_shift import DEFAULT_RANGE_US, DEFAULT_STEP_US
 
-    rng = np.random.default_rng(26)
+    rng, raw_rng = np.random.default_rng(26), np.random.default_rng(26)
     shifts = np.array([draw_shift_us(rng) for _ in range(20_000)])
+    raw = raw_rng.integers(-60_000, 60_001, 20_000)  # the draw over the whole range, as before the margin
+    inside = np.abs(raw) <= DEFAULT_MAX_SHIFT_US
+    assert np.array_equal(shifts[inside], raw[inside])  # a seed whose shift was inside keeps its session
+    assert rng.integers(0, 2**62) == raw_rng.integers(0, 2**62)  # the stream goes on as before
     edge = DEFAULT_RANGE_US - 0.25 * DEFAULT_STEP_US  # the nearest to the end align accepts
     assert edge - np.abs(shifts).max() >= 3 * 1100  # three times the largest estimate error seen
     assert np.abs(shifts).max() > DEFAULT_MAX_SHIFT_US - 100  # the range is used up to its bound

@@ -480,18 +480,7 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
     good = np.all(np.isfinite(pos), axis=1)
     fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init)
     if opts.refine_features:  # the keypoints' own localisation error, then T_ex again
-        # on copies: the effect loop (align.loop) keeps the SIFT tracks. Fed the refined ones, its residual
-        # scale halves and it accepted a lens k1 or a clock drift on 3 of 11 clean sessions (none without)
-        refined = [replace(p, tracks=p.tracks.copy()) for p in probes]
-        refine_probe_tracks(setup, refined, fit.T, shift.shift_at(np.array([p.t_hq_us for p in refined])))
-        loss = ShiftLoss(refined, fit.T, setup.K_lq_color, t0_us=shift.t0_us)
-        pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
-        kept = np.all(np.isfinite(pos), axis=1)
-        if kept.sum() >= max(MIN_POINTS, REFINE_MIN_KEPT * good.sum()):
-            fit = fit_extrinsics(loss.points[kept], pos[kept], setup.K_lq_color, T_init=fit.T)
-        else:
-            log.warning("%s: the feature refinement placed only %d of %d keypoints; T_ex stays the fit of the keypoints "
-                        "as detected", setup.session.root, int(kept.sum()), int(good.sum()))
+        fit = _refit_on_refined_keypoints(setup, probes, fit, shift, n_first=int(good.sum()))
     T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
     pf = PairFit(setup=setup, shift=shift, fit=fit, T_lq_hq=T_lq_hq, probes=probes, feature_residuals_px=fit.residuals_px,
                  candidates=n_cand, seconds=time.perf_counter() - t_start)
@@ -499,6 +488,27 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
         pf.T_lq_hq, pf.board = calibrate_with_board(setup, opts, pf.time_shift_at)
         pf.seconds = time.perf_counter() - t_start
     return pf
+
+
+def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: ExtrinsicFit, shift, *,
+                                n_first: int) -> ExtrinsicFit:
+    """``T_ex`` fitted again on the photometrically refined keypoints (:func:`refine_probe_tracks`), or ``fit``
+    itself when the refinement places fewer than ``REFINE_MIN_KEPT`` of the first fit's ``n_first``
+    correspondences. The probes are copied: the effect loop (align.loop) keeps the SIFT tracks (fed the refined
+    ones, its residual scale halves and it accepted a lens k1 or a clock drift on 3 of 11 clean sessions)."""
+    refined = [replace(p, tracks=p.tracks.copy()) for p in probes]
+    refine_probe_tracks(setup, refined, fit.T, shift.shift_at(np.array([p.t_hq_us for p in refined])))
+    try:
+        loss = ShiftLoss(refined, fit.T, setup.K_lq_color, t0_us=shift.t0_us)
+        pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
+        kept = np.all(np.isfinite(pos), axis=1)
+    except UnobservableError:   # no refined track through a whole window
+        kept = np.zeros(0, bool)
+    if kept.sum() >= max(MIN_POINTS, REFINE_MIN_KEPT * n_first):
+        return fit_extrinsics(loss.points[kept], pos[kept], setup.K_lq_color, T_init=fit.T)
+    log.warning("%s: the feature refinement placed only %d of %d keypoints; T_ex stays the fit of the keypoints as "
+                "detected", setup.session.root, int(kept.sum()), n_first)
+    return fit
 
 
 def calibrate_with_board(setup: PairSetup, opts: AlignOptions, shift_at) -> tuple[Transform, dict]:

@@ -336,8 +336,10 @@ def ranking_check(df: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0) -> dic
     their mean over frames against the HQ reference (``"hq"``) and against the truth on the reference's pixels
     (``"truth"``), whether the two orders are equal, and for every pair ``(a, b)`` the per-frame difference
     ``a - b`` (mean and 95 % paired bootstrap interval over frames) in each scoring and against the truth on the
-    pixels without a reference (``"truth_noref"``). Returns ``{metric: {"order": {scoring: [key, ...]},
-    "same": bool, "pairs": [(a, b, {scoring: (mean, lo, hi)})]}}``; empty without truth rows."""
+    pixels without a reference (``"truth_noref"``). ``"wrong"`` lists the pairs the reference decides against the
+    truth: opposite signs, both intervals clear of zero. Returns ``{metric: {"order": {scoring:
+    [key, ...]}, "same": bool, "pairs": [(a, b, {scoring: (mean, lo, hi)})], "wrong": [(a, b)]}}``; empty
+    without truth rows."""
     keys = [k for k in method_labels(df[df["reference"] == "truth"]) if k in set(df.loc[df["reference"] == "hq", "method_key"])]
     if len(keys) < 2:
         return {}
@@ -355,8 +357,17 @@ def ranking_check(df: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0) -> dic
             diffs[ref] = bootstrap_summary(d, n_boot=n_boot, seed=seed)
         pairs = [(a, b, {ref: tuple(float(diffs[ref].loc[(a, b), c]) for c in ("mean", "lo", "hi")) for ref in diffs})
                  for i, a in enumerate(keys) for b in keys[i + 1:]]
-        out[metric] = {"order": order, "same": order["hq"] == order["truth"], "pairs": pairs}
+        out[metric] = {"order": order, "same": order["hq"] == order["truth"], "pairs": pairs,
+                       "wrong": [(a, b) for a, b, d in pairs if _decided_wrongly(d["hq"], d["truth"])]}
     return out
+
+
+def _decided_wrongly(hq: tuple, truth: tuple) -> bool:
+    """A pair the HQ reference and the truth order oppositely, each with its 95 % interval clear of zero; where
+    either interval straddles zero the flip is within that scoring's noise, not a contradiction."""
+    if not (np.isfinite(hq[0]) and np.isfinite(truth[0])) or np.sign(hq[0]) == np.sign(truth[0]):
+        return False
+    return all(t[1] > 0 or t[2] < 0 for t in (hq, truth))
 
 
 def _ranking_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> None:
@@ -368,7 +379,11 @@ def _ranking_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> 
     lines = []
     for metric, c in check.items():
         o = {ref: " < ".join(labels[k] for k in c["order"][ref]) for ref in ("hq", "truth")}
-        verdict = "**yes**, the same order" if c["same"] else "**no**, the orders differ"
+        flips = sum(np.sign(d["hq"][0]) != np.sign(d["truth"][0]) for _, _, d in c["pairs"])
+        verdict = ("**yes**, the same order" if c["same"] else
+                   f"**no**, the orders differ in {flips} of {len(c['pairs'])} pairs; in {len(c['wrong'])} of them "
+                   "both scorings' 95 % intervals are clear of zero (the reference contradicts the truth), in the "
+                   "others the flip is within one scoring's noise")
         lines.append(f"{RANKING_METRICS[metric]}: {verdict} (against the HQ reference: {o['hq']}; against the truth on "
                      f"the reference's pixels: {o['truth']}).")
     doc.para(" ".join(lines))

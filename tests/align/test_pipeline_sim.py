@@ -5,6 +5,7 @@ The fit never reads truth/; these tests do, afterwards.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import shutil
 
 import numpy as np
@@ -282,3 +283,24 @@ def test_reference_edge_rule_is_recorded_and_halves_large_errors(sim_plus55, ali
             use = f.roi & np.isfinite(ref) & np.isfinite(f.truth)
             big[name] += int((np.abs(ref - f.truth)[use] > 0.05).sum())
     assert big["footprint-fg"] < 0.5 * big["midpoint"], big
+
+
+def test_refinement_that_places_too_few_keypoints_keeps_the_first_fit(sim_plus55, monkeypatch, caplog):
+    """When the photometric refinement places under ``REFINE_MIN_KEPT`` of the keypoints (the demo's four-view rig
+    kept 2 of 55 and the fit stopped on "only 2 3D-2D feature pairs"), T_ex is the fit of the keypoints as
+    detected, the same as with the refinement off, and a warning says so."""
+    import align.pipeline as pipeline
+
+    sess = open_session(sim_plus55)
+    setup = pipeline.pair_setup(sess, lq=pipeline._only(sess, "lq"), hq=pipeline._only(sess, "hq"))
+    opts = pipeline.AlignOptions(loop=False)
+    plain = pipeline.fit_pair(setup, replace(opts, refine_features=False))
+
+    def place_none(patches, *args, **kwargs):
+        return np.zeros((len(patches), 2)), np.zeros(len(patches), bool)
+
+    monkeypatch.setattr(pipeline, "refine_offsets", place_none)
+    with caplog.at_level("WARNING"):
+        fallback = pipeline.fit_pair(setup, opts)
+    assert np.allclose(fallback.T_lq_hq.matrix, plain.T_lq_hq.matrix, atol=1e-12)
+    assert "placed only 0 of" in caplog.text

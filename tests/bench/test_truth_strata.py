@@ -8,6 +8,7 @@ import pytest
 
 from align.dataset import AlignedDataset, AlignedDatasetWriter
 from bench.masks import truth_strata
+import bench.report as report_mod
 from bench.report import noref_share, ranking_check
 from bench.runner import run_benchmark
 from tests.bench.conftest import SMALL_CONFIG
@@ -101,6 +102,7 @@ def test_ranking_check_finds_an_order_the_reference_gets_wrong(tmp_path):
         (a, b, d), = check[metric]["pairs"]
         assert d["hq"][0] < 0 and d["truth"][0] < 0     # raw is better than raw + 5 mm in both
         assert d["truth"][2] < 0                         # and the interval says so
+        assert check[metric]["wrong"] == []
     # swap the two methods' values against the HQ reference only: now the orders differ
     t2 = t.copy()
     hq = t2["reference"] == "hq"
@@ -114,3 +116,9 @@ def test_ranking_check_finds_an_order_the_reference_gets_wrong(tmp_path):
         assert not flipped[metric]["same"]
         (a, b, d), = flipped[metric]["pairs"]
         assert np.sign(d["hq"][0]) != np.sign(d["truth"][0]) and d["hq"][1] > 0 and d["truth"][2] < 0
+        assert flipped[metric]["wrong"] == [(a, b)]     # both clear of zero: a contradiction
+    # the same flip with either scoring's interval straddling zero: within noise, not a contradiction
+    (a, b, d), = flipped["mse_mm2"]["pairs"]
+    assert report_mod._decided_wrongly(d["hq"], d["truth"])
+    assert not report_mod._decided_wrongly((d["hq"][0], -abs(d["hq"][1]), abs(d["hq"][2])), d["truth"])
+    assert not report_mod._decided_wrongly(d["hq"], (d["truth"][0], -abs(d["truth"][1]), abs(d["truth"][2])))

@@ -143,7 +143,7 @@ def _add_corpus(sub) -> None:
     p.add_argument("--seconds", type=_positive_float, default=3.0, help="seconds per sequence (default 3)")
     p.add_argument("--scale", type=_positive_float, default=0.5, help="image size factor (default 0.5: 320x240)")
     p.add_argument("--time-shifts-ms", default="", metavar="MS,MS,...",
-                   help="LQ-vs-HQ clock shifts cycled over the seeds (default: drawn within +-60 ms per seed)")
+                   help="LQ-vs-HQ clock shifts cycled over the seeds (default: drawn within +-55 ms per seed)")
     p.add_argument("--validation", type=int, default=1, help="sequences in the validation split (default 1)")
     p.add_argument("--test", type=int, default=0, help="sequences in the test split (default 0)")
     p.add_argument("--name", default="sim-corpus", help="corpus name (in the manifest and on leaderboards)")

@@ -49,7 +49,7 @@ TRAINING_MOTION_MODEL = "flow"
 class CorpusSpec:
     """What to simulate: one sequence per seed; scenes and time shifts are cycled over the seeds.
 
-    ``time_shifts_ms``: empty = drawn by the simulator within +-60 ms from each seed. ``scale``:
+    ``time_shifts_ms``: empty = drawn by the simulator within +-55 ms from each seed. ``scale``:
     image size factor (0.5: 320x240 LQ). ``validation`` / ``test``: sequences in those splits.
     ``probes``: HQ frames the alignment fits (None: its default). ``reports``: each sequence's
     alignment report (Markdown and figures, a few CPU-seconds per sequence). ``motion_model``: the

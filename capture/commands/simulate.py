@@ -45,7 +45,7 @@ def add_parser(sub) -> None:
     p.add_argument("--undeclared", action="store_true",
                    help="record the effects in truth/ only, not in session.json (later stages must find them)")
     p.add_argument("--time-shift-ms", type=float, default=None, metavar="MS",
-                   help="true LQ-vs-HQ host clock shift in ms (default: drawn within +-60 ms)")
+                   help="true LQ-vs-HQ host clock shift in ms (default: drawn within +-55 ms, inside the alignment's +-60 ms search)")
     p.add_argument("--frame-phase-ms", type=float, default=None, metavar="MS",
                    help="how long after each HQ frame the LQ frame is exposed, ms, within one LQ frame period "
                         "either way: how far apart a pair's frames fall (default: drawn with the seed)")

@@ -111,10 +111,14 @@ class FlowSource:
     thread, :class:`align.motion_flow.ColorFlow`)."""
 
     def __init__(self, cfg: MotionConfig) -> None:
+        import cv2
+
         from align.motion_flow import ColorFlow
 
         self.cfg = cfg
-        self._flow = ColorFlow()
+        # DIS ultrafast at its own finest level, as level 2's motion was measured with (session 7); align's
+        # default flow (ColorFlow()) stops one level coarser, tuned for its quarter-size images (session 9)
+        self._flow = ColorFlow(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
 
     def image(self, depth: np.ndarray, color: np.ndarray | None):
         """What the flow of a frame is computed from: its colour (``"color"``) or its depth (``"depth"``)."""

@@ -5,6 +5,7 @@ small previews in ``RESULTS/previews/``) and writes ``leaderboard.md``, ``leader
 inlined as base64, no external resources) and ``figures/*.png`` into the results folder. The report
 is derived data: it is replaced on every run or ``depthbench bench report``.
 
+Every number shown is computed by :mod:`bench.summary` (pure pandas/numpy); this module lays them out.
 Summary numbers are means over frames of the per-frame metric (every frame of every dataset
 weighs the same) with 95 % percentile bootstrap intervals: frames are resampled with replacement
 (2000 resamples, seed 0), the same resamples for every method and metric (paired).
@@ -12,13 +13,11 @@ weighs the same) with 95 % percentile bootstrap intervals: frames are resampled 
 Against the simulator's truth the pixels are split by the HQ reference (:func:`bench.masks.truth_strata`):
 the truth summary scores the same pixels as the HQ summary (like with like), and the ROI pixels without
 a reference ("silhouettes / no reference") are their own stratum, scored against the truth only, with
-their share of the ROI. :func:`ranking_check` says whether the HQ reference orders the methods as the
+their share of the ROI. :func:`bench.summary.ranking_check` says whether the HQ reference orders the methods as the
 truth does on those shared pixels (MSE and RMSE), with paired intervals of every pair's difference.
 """
 from __future__ import annotations
 
-import warnings
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,22 +26,10 @@ import pandas as pd
 
 from bench import plots
 from bench import results as R
-from bench.metrics import BINNED
+from bench.summary import (MIN_BIN_SHARE, NOREF, RANKING_METRICS, TABLE_I, bootstrap_summary, depth_curves,
+                           frame_values, method_labels, noref_share, ranking_check, table_i_slot)
 from depthbench.fsutil import atomic_write_text, staged_directory
 from depthbench.markdown_html import html_page, markdown_to_html
-
-#: Table I of the seed report: column order and labels; names are matched after lower-casing and
-#: removing non-alphanumerics, with the aliases of the registered implementations.
-TABLE_I = (
-    ("raw", "Raw", ("raw",)),
-    ("bf", "BF", ("bf", "bilateral", "bilateralfilter")),
-    ("jbf", "JBF", ("jbf", "jointbilateral", "jointbilateralfilter")),
-    ("rgf", "RGF", ("rgf", "rollingguidance", "rollingguidancefilter")),
-    ("ddrnet", "DDRNet", ("ddrnet",)),
-    ("ddd", "DDD", ("ddd", "deepdepthdenoising")),
-    ("ssdd_unet", "SSDD UNet", ("ssddunet", "ssdd")),
-    ("ssdd_lstm", "SSDD LSTM", ("ssddlstm", "ssddlstmunet")),
-)
 
 #: The published numbers of the seed report's Table I (other data, other sensors; not comparable).
 PUBLISHED = (
@@ -65,13 +52,6 @@ SUMMARY_METRICS = {
     "mse_moving_mm2": "MSE, moving pixels (mm²)", "mae_moving_mm": "MAE, moving pixels (mm)",
 }
 SEQUENCE_METRICS = ("rmse_mm", "mae_mm", "plane_fit_rmse_mm", "fill_rate")
-#: Depth bins holding less than this share of a method's scored pixels are left out of the plots.
-MIN_BIN_SHARE = 0.001
-HQ_SENSOR = "hq_sensor"
-#: the truth stratum of the ROI pixels without an HQ reference (:func:`bench.masks.truth_strata`)
-NOREF = "truth_noref"
-#: the metrics the ranking check compares the two scorings on
-RANKING_METRICS = {"mse_mm2": "MSE", "rmse_mm": "RMSE"}
 
 
 @dataclass
@@ -87,98 +67,6 @@ class ReportPaths:
         def mv(p: Path) -> Path:
             return Path(dst) / Path(p).relative_to(src)
         return ReportPaths(mv(self.markdown), mv(self.html), [mv(p) for p in self.figures])
-
-
-# ----------------------------------------------------------------------------------- columns
-def _norm(name: str) -> str:
-    return re.sub(r"[^a-z0-9]", "", name.lower())
-
-
-def table_i_slot(name: str) -> int | None:
-    """Position of a method name in Table I's column order, or None."""
-    n = _norm(name)
-    for k, (_, _, aliases) in enumerate(TABLE_I):
-        if n in aliases:
-            return k
-    return None
-
-
-def method_labels(df: pd.DataFrame, *, include_hq_sensor: bool = False) -> dict[str, str]:
-    """Method key -> column label, in Table I order, other methods after them by name, HQ sensor last."""
-    keys = df[["method", "method_key", "method_version"]].drop_duplicates()
-    if not include_hq_sensor:
-        keys = keys[keys["method"] != HQ_SENSOR]
-    counts = keys["method"].value_counts()
-
-    def sort_key(r):
-        slot = table_i_slot(r.method)
-        return (2 if r.method == HQ_SENSOR else 0 if slot is not None else 1, slot or 0, r.method, r.method_key)
-
-    out = {}
-    for r in sorted(keys.itertuples(), key=sort_key):
-        slot = table_i_slot(r.method)
-        label = "HQ sensor" if r.method == HQ_SENSOR else TABLE_I[slot][1] if slot is not None else r.method
-        if counts[r.method] > 1:
-            label += f" v{r.method_version}"
-        out[r.method_key] = label
-    return out
-
-
-# ----------------------------------------------------------------------------------- statistics
-def frame_values(df: pd.DataFrame, reference: str) -> pd.DataFrame:
-    """Frame-level rows of one reference as a wide table: index (dataset_checksum, frame), columns (metric, method_key)."""
-    rows = df[(df["reference"] == reference) & df["bin_lo_m"].isna()]
-    v = rows.set_index(["dataset_checksum", "frame", "metric", "method_key"])["value"]
-    wide = v[~v.index.duplicated()].unstack(["metric", "method_key"])
-    return wide.sort_index().sort_index(axis=1)
-
-
-def bootstrap_summary(wide: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0, level: float = 0.95) -> pd.DataFrame:
-    """Mean over frames and a percentile bootstrap interval for every column of ``wide``.
-
-    Frames (rows) are resampled with replacement ``n_boot`` times with ``numpy.random.default_rng(seed)``;
-    the same resamples serve every column (a paired bootstrap). NaN values are left out of the
-    means. Returns a frame indexed like ``wide.columns`` with ``mean, lo, hi, n_frames``.
-    """
-    F = wide.to_numpy(dtype=np.float64)
-    n = F.shape[0]
-    valid = np.isfinite(F)
-    Z = np.where(valid, F, 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = Z.sum(axis=0) / valid.sum(axis=0)
-    if n == 0:
-        lo = hi = mean
-    else:
-        counts = np.random.default_rng(seed).multinomial(n, np.full(n, 1.0 / n), size=n_boot).astype(np.float64)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            boot = (counts @ Z) / (counts @ valid)
-        a = (1.0 - level) / 2.0
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)    # all-NaN columns give NaN intervals
-            lo = np.nanquantile(boot, a, axis=0)
-            hi = np.nanquantile(boot, 1.0 - a, axis=0)
-    return pd.DataFrame({"mean": mean, "lo": lo, "hi": hi, "n_frames": valid.sum(axis=0)}, index=wide.columns)
-
-
-def depth_curves(df: pd.DataFrame, reference: str) -> pd.DataFrame:
-    """Binned rows pooled over frames: per (method key, depth bin) MAE, plane-fit RMSE, excluded share."""
-    b = df[(df["reference"] == reference) & df["bin_lo_m"].notna()]
-    if b.empty:
-        return pd.DataFrame(columns=["method_key", "depth_m", "mae_mm", "plane_fit_rmse_mm", "excluded_share", "n_valid"])
-    w = b.set_index(["method_key", "dataset_checksum", "frame", "bin_lo_m", "bin_hi_m", "metric"])["value"]
-    w = w[~w.index.duplicated()].unstack("metric").reindex(columns=list(BINNED)).reset_index()
-    w["abs_sum"] = np.nan_to_num(w["mae_mm"]) * w["n_valid"]
-    w["pf_sq"] = np.nan_to_num(w["plane_fit_rmse_mm"]) ** 2 * w["plane_fit_n"]
-    g = w.groupby(["method_key", "bin_lo_m", "bin_hi_m"], as_index=False)[
-        ["n_valid", "abs_sum", "plane_fit_n", "pf_sq", "plane_fit_excluded"]].sum()
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g["mae_mm"] = np.where(g["n_valid"] > 0, g["abs_sum"] / g["n_valid"], np.nan)
-        g["plane_fit_rmse_mm"] = np.where(g["plane_fit_n"] > 0, np.sqrt(g["pf_sq"] / g["plane_fit_n"]), np.nan)
-        tot = g["plane_fit_n"] + g["plane_fit_excluded"]
-        g["excluded_share"] = np.where(tot > 0, g["plane_fit_excluded"] / tot, np.nan)
-    g["depth_m"] = (g["bin_lo_m"] + g["bin_hi_m"]) / 2
-    g = g[g["n_valid"] >= MIN_BIN_SHARE * g.groupby("method_key")["n_valid"].transform("sum")]
-    return g[["method_key", "depth_m", "mae_mm", "plane_fit_rmse_mm", "excluded_share", "n_valid"]]
 
 
 # ----------------------------------------------------------------------------------- formatting
@@ -292,21 +180,6 @@ def _summary_section(doc: _Doc, df: pd.DataFrame, reference: str, *, n_boot: int
     doc.figure(f"summary_{reference}.png", png, f"Summary against the {'truth' if truth else 'HQ reference'}")
 
 
-def noref_share(df: pd.DataFrame) -> pd.Series:
-    """Per frame (index ``(dataset_checksum, frame)``): the share of the ROI's truth pixels that have no HQ
-    reference, ``n_reference(truth_noref) / (n_reference(truth) + n_reference(truth_noref))`` (``n_reference`` is
-    the same for every method; the first method key's rows are read, not the HQ sensor's)."""
-    rows = df[df["reference"].isin(["truth", NOREF]) & df["bin_lo_m"].isna() & (df["metric"] == "n_reference")
-              & (df["method"] != HQ_SENSOR)]
-    if rows.empty:
-        return pd.Series(dtype=np.float64)
-    first = sorted(rows["method_key"].unique())[0]
-    v = rows[rows["method_key"] == first].set_index(["dataset_checksum", "frame", "reference"])["value"]
-    w = v[~v.index.duplicated()].unstack("reference").reindex(columns=["truth", NOREF])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (w[NOREF] / (w["truth"] + w[NOREF])).sort_index()
-
-
 def _noref_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> None:
     """The ROI pixels without an HQ reference, scored against the truth only."""
     part = df[df["reference"] == NOREF]
@@ -327,47 +200,6 @@ def _noref_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> No
              f"{100 * sh['hi']:.1f}] of the ROI's truth pixels (mean over {len(share)} frames, 95 % bootstrap). Only "
              "the simulator's truth scores them, here; neither summary above includes them. Their errors are those "
              "of depth edges, where the methods differ most.", cls="note")
-
-
-def ranking_check(df: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0) -> dict:
-    """Does the HQ reference rank the methods as the truth does on the same pixels?
-
-    On the frames with truth, per metric of :data:`RANKING_METRICS`: the methods (not the HQ sensor) ordered by
-    their mean over frames against the HQ reference (``"hq"``) and against the truth on the reference's pixels
-    (``"truth"``), whether the two orders are equal, and for every pair ``(a, b)`` the per-frame difference
-    ``a - b`` (mean and 95 % paired bootstrap interval over frames) in each scoring and against the truth on the
-    pixels without a reference (``"truth_noref"``). ``"wrong"`` lists the pairs the reference decides against the
-    truth: opposite signs, both intervals clear of zero. Returns ``{metric: {"order": {scoring:
-    [key, ...]}, "same": bool, "pairs": [(a, b, {scoring: (mean, lo, hi)})], "wrong": [(a, b)]}}``; empty
-    without truth rows."""
-    keys = [k for k in method_labels(df[df["reference"] == "truth"]) if k in set(df.loc[df["reference"] == "hq", "method_key"])]
-    if len(keys) < 2:
-        return {}
-    wides = {ref: frame_values(df, ref) for ref in ("hq", "truth", NOREF)}
-    frames = wides["truth"].index
-    out = {}
-    for metric in RANKING_METRICS:
-        cols = {ref: w.reindex(index=frames, columns=[(metric, k) for k in keys]) for ref, w in wides.items()}
-        order = {ref: [k for _, k in sorted(zip(cols[ref].mean().to_numpy(), keys), key=lambda t: (np.nan_to_num(t[0], nan=np.inf), t[1]))]
-                 for ref in ("hq", "truth")}
-        diffs = {}
-        for ref, c in cols.items():
-            d = pd.DataFrame({(a, b): c[(metric, a)].to_numpy() - c[(metric, b)].to_numpy()
-                              for i, a in enumerate(keys) for b in keys[i + 1:]}, index=frames)
-            diffs[ref] = bootstrap_summary(d, n_boot=n_boot, seed=seed)
-        pairs = [(a, b, {ref: tuple(float(diffs[ref].loc[(a, b), c]) for c in ("mean", "lo", "hi")) for ref in diffs})
-                 for i, a in enumerate(keys) for b in keys[i + 1:]]
-        out[metric] = {"order": order, "same": order["hq"] == order["truth"], "pairs": pairs,
-                       "wrong": [(a, b) for a, b, d in pairs if _decided_wrongly(d["hq"], d["truth"])]}
-    return out
-
-
-def _decided_wrongly(hq: tuple, truth: tuple) -> bool:
-    """A pair the HQ reference and the truth order oppositely, each with its 95 % interval clear of zero; where
-    either interval straddles zero the flip is within that scoring's noise, not a contradiction."""
-    if not (np.isfinite(hq[0]) and np.isfinite(truth[0])) or np.sign(hq[0]) == np.sign(truth[0]):
-        return False
-    return all(t[1] > 0 or t[2] < 0 for t in (hq, truth))
 
 
 def _ranking_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> None:

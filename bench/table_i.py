@@ -9,7 +9,7 @@ reference and, for simulated data, against the simulator's truth. Against the tr
 pixel sets: the HQ reference's own pixels (reference ``truth``, like with like with the reference rows)
 and the whole ROI (``truth_roi``, :mod:`bench.truth_roi`: also the silhouettes / no-reference pixels;
 MSE and RMSE only, the plane fit does not combine across the strata). Cells are means over frames with
-95 % bootstrap intervals (:func:`bench.report.bootstrap_summary`). The DDRNet column is the
+95 % bootstrap intervals (:func:`bench.summary.bootstrap_summary`). The DDRNet column is the
 denoising net alone (``ddrnet``), as DDD's comparison ran it; ``ddrnet_refine`` and other methods
 are in the summary tables above.
 """
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from bench.summary import bootstrap_summary, frame_values
 from bench.truth_roi import TRUTH_ROI, with_truth_roi
 
 #: The seed's columns: label, the suite's method name, the key of the published values.
@@ -49,7 +50,7 @@ def column_keys(df: pd.DataFrame) -> list[str | None]:
 
 def table_i_rows(df: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0) -> tuple[list[str], list[list[str]], list[str]]:
     """``(header, rows, row classes)`` of the side-by-side table (classes ``published`` / ``""``)."""
-    from bench.report import PUBLISHED, _cell, _fmt, bootstrap_summary, frame_values
+    from bench.report import PUBLISHED, _cell, _fmt
 
     keys = column_keys(df)
     df = with_truth_roi(df)

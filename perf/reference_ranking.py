@@ -24,7 +24,7 @@ on the reference's pixels +6.4 [+5.2, +7.7], with every edge rule (``strict``, `
 methods in each scoring and whether the reference's equals the truth's.
 
 Since session 9 the leaderboard itself scores the truth columns on the reference's pixels and reports the rest
-of the ROI as the stratum "silhouettes / no reference", with the same check (:func:`bench.report.ranking_check`);
+of the ROI as the stratum "silhouettes / no reference", with the same check (:func:`bench.summary.ranking_check`);
 this script recomputes it from the aligned dataset alone, methods run afresh.
 """
 from __future__ import annotations

@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 
 from bench import results as R
-from bench.report import bootstrap_summary, method_labels, write_report
+from bench.report import write_report
+from bench.summary import bootstrap_summary, method_labels
 from bench.runner import run_benchmark
 from tests.bench.conftest import SMALL_CONFIG
 from tests.bench.helpers import Shift, Smooth

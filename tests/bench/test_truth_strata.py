@@ -8,8 +8,7 @@ import pytest
 
 from align.dataset import AlignedDataset, AlignedDatasetWriter
 from bench.masks import truth_strata
-import bench.report as report_mod
-from bench.report import noref_share, ranking_check
+from bench.summary import decided_wrongly, noref_share, ranking_check
 from bench.runner import run_benchmark
 from tests.bench.conftest import SMALL_CONFIG
 from tests.bench.helpers import K_SMALL, Shift, scene_depth
@@ -119,6 +118,6 @@ def test_ranking_check_finds_an_order_the_reference_gets_wrong(tmp_path):
         assert flipped[metric]["wrong"] == [(a, b)]     # both clear of zero: a contradiction
     # the same flip with either scoring's interval straddling zero: within noise, not a contradiction
     (a, b, d), = flipped["mse_mm2"]["pairs"]
-    assert report_mod._decided_wrongly(d["hq"], d["truth"])
-    assert not report_mod._decided_wrongly((d["hq"][0], -abs(d["hq"][1]), abs(d["hq"][2])), d["truth"])
-    assert not report_mod._decided_wrongly(d["hq"], (d["truth"][0], -abs(d["truth"][1]), abs(d["truth"][2])))
+    assert decided_wrongly(d["hq"], d["truth"])
+    assert not decided_wrongly((d["hq"][0], -abs(d["hq"][1]), abs(d["hq"][2])), d["truth"])
+    assert not decided_wrongly(d["hq"], (d["truth"][0], -abs(d["truth"][1]), abs(d["truth"][2])))

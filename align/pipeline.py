@@ -78,7 +78,8 @@ class AlignOptions:
     features: sift | orb | akaze. max_features: per image. detect_scale: images are resized by
     this factor for detection (coordinates stay full resolution); default: so that the shorter side
     is about 240 px, at most halved (SIFT's cost falls with the square), and full resolution where that
-    would shrink it by less than :data:`FULL_RES_ABOVE`. probes: HQ frames used for the fit.
+    would shrink it by less than :data:`FULL_RES_ABOVE`. probes: HQ frames used for the fit (more where
+    they hold fewer than ``min_matches`` colour matches: :func:`build_probes`).
     association: nearest (eq. 28) | greedy (TUM). max_dt_ms: largest |t_LQ - (t_HQ + Delta)| of
     a kept pair (default half the LQ frame period). residual_k: a pair whose depth residual lies
     more than k MAD-sigmas above the median is dropped. time_model: constant | linear.
@@ -400,8 +401,35 @@ def _detect_scale(image: np.ndarray, scale: float | None) -> float:
     return 1.0 if s > FULL_RES_ABOVE else s
 
 
+def _spread(n: int, k: int) -> np.ndarray:
+    """``min(k, n)`` indices of ``range(n)`` spread evenly, first and last included."""
+    return np.unique(np.linspace(0, n - 1, min(k, n)).round().astype(int)) if n else np.zeros(0, int)
+
+
+def _run_probes(builder: ProbeBuilder, frames: np.ndarray, opts: AlignOptions, desc: str) -> list[Probe]:
+    """The probes of HQ depth ``frames`` (threads: OpenCV and numpy release the GIL)."""
+    threads = cv2.getNumThreads()
+    if opts.workers > 1:
+        cv2.setNumThreads(1)
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, opts.workers)) as pool:
+            it = pool.map(builder, frames.tolist())
+            return [p for p in tqdm(it, total=frames.size, desc=f"{desc} {builder.s.name}", unit="frame",
+                                    disable=not opts.progress, file=sys.stderr, leave=False) if p is not None]
+    finally:
+        cv2.setNumThreads(threads)
+
+
 def build_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> tuple[list[Probe], int]:
-    """Probes spread evenly over the session (threads: OpenCV and numpy release the GIL)."""
+    """``opts.probes`` probes spread evenly over the session, more where their matches fall short.
+
+    A pair whose probes hold fewer than ``opts.min_matches`` colour matches (views of a multi-view rig
+    that share little texture: the demo's four-view rig had a pair at 57 of 60 with 8 probes) gets more
+    probes from the rest of the session before it is refused: each round adds as many candidate frames
+    as it has probes, spread evenly over those not used yet, until the matches suffice or every candidate
+    is used. A pair with enough matches at first keeps exactly its first probes. Returns the probes in
+    time order and the number of candidate frames.
+    """
     builder = ProbeBuilder(setup, opts)
     cand = builder.candidates()
     if cand.size == 0:
@@ -410,17 +438,16 @@ def build_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features"
             f"{setup.session.root}: {setup.hq}/{setup.hq_depth} ({setup.t_hq[0]}..{setup.t_hq[-1]} us) and "
             f"{setup.lq}/{setup.lq_color} ({setup.t_lq_c[0]}..{setup.t_lq_c[-1]} us) do not overlap for any shift "
             f"in [{lo / 1000:g}, {hi / 1000:g}] ms")
-    pick = cand[np.unique(np.linspace(0, cand.size - 1, min(opts.probes, cand.size)).round().astype(int))]
-    threads = cv2.getNumThreads()
-    if opts.workers > 1:
-        cv2.setNumThreads(1)
-    try:
-        with ThreadPoolExecutor(max_workers=max(1, opts.workers)) as pool:
-            it = pool.map(builder, pick.tolist())
-            probes = [p for p in tqdm(it, total=pick.size, desc=f"{desc} {setup.name}", unit="frame",
-                                      disable=not opts.progress, file=sys.stderr, leave=False) if p is not None]
-    finally:
-        cv2.setNumThreads(threads)
+    used = _spread(cand.size, opts.probes)
+    probes = _run_probes(builder, cand[used], opts, desc)
+    while sum(p.n_features for p in probes) < opts.min_matches and used.size < cand.size:
+        rest = np.setdiff1d(np.arange(cand.size), used)
+        more = rest[_spread(rest.size, used.size)]
+        log.info("%s: %d colour matches over %d probes (need %d): %d more probe frames", setup.name,
+                 sum(p.n_features for p in probes), used.size, opts.min_matches, more.size)
+        probes += _run_probes(builder, cand[more], opts, desc)
+        used = np.union1d(used, more)
+    probes.sort(key=lambda p: p.hq_index)
     n_matches = sum(p.n_features for p in probes)
     if n_matches < opts.min_matches:
         raise FeatureError(f"{setup.session.root}: only {n_matches} colour feature matches between {setup.hq} and "
@@ -878,20 +905,37 @@ def align_session(session, out, *, force: bool = False, lq: str | None = None, h
 RIG_FRAMES = 40
 
 
+class DepthReader:
+    """A session's depth frames, each read once: the rig refinement and the view sync of a multi-view
+    rig read many of the same frames (a one-second rig: every frame of every sensor, both)."""
+
+    def __init__(self, sess: Session) -> None:
+        self.sess = sess
+        self.cache: dict[tuple[str, int], np.ndarray] = {}
+
+    def __call__(self, sensor: str, stream: str, numbers) -> np.ndarray:
+        """The frames ``numbers`` of ``sensor``'s depth ``stream``, stacked ``(n, H, W)``."""
+        for f in numbers:
+            if (sensor, int(f)) not in self.cache:
+                self.cache[(sensor, int(f))] = self.sess.read_depth(sensor, int(f), stream=stream)
+        return np.stack([self.cache[(sensor, int(f))] for f in numbers])
+
+
 def refine_multiview_rig(sess: Session, fits: dict[str, PairFit], rig: RigCalibration, *,
-                         progress: bool = True) -> RigCalibration:
+                         progress: bool = True, depth: DepthReader | None = None) -> RigCalibration:
     """The feature rig refined from every sensor's static depth (:mod:`align.rig_refine`); the
-    feature fits go in as the check (their own covariances). Never reads ``truth/``."""
+    feature fits go in as the check (their own covariances). ``depth``: frames already read (shared
+    with :func:`sync_multiview_views`). Never reads ``truth/``."""
     from align.rig_refine import feature_edge, refine_rig, static_cloud
 
+    depth = depth or DepthReader(sess)
     clouds = {}
     for s in tqdm(list(rig.T_rig_sensor), desc="rig depth", unit="sensor", disable=not progress, file=sys.stderr,
                   leave=False):
         stream = _stream_of_type(sess, s, "depth")
         fn = sess.frames(s, stream)["frame_number"].to_numpy()
         pick = fn[np.unique(np.linspace(0, fn.size - 1, min(RIG_FRAMES, fn.size)).round().astype(int))]
-        clouds[s] = static_cloud(np.stack([sess.read_depth(s, int(f), stream=stream) for f in pick]),
-                                 sess.intrinsics(s, stream))
+        clouds[s] = static_cloud(depth(s, stream, pick), sess.intrinsics(s, stream))
     edges = []
     for pf in fits.values():
         st = pf.setup
@@ -909,22 +953,17 @@ def refine_multiview_rig(sess: Session, fits: dict[str, PairFit], rig: RigCalibr
                           T_rig_sensor_features=dict(rig.T_rig_sensor))
 
 
-def sync_multiview_views(sess: Session, fits: dict[str, PairFit], rig: RigCalibration, opts: AlignOptions) -> dict:
+def sync_multiview_views(sess: Session, fits: dict[str, PairFit], rig: RigCalibration, opts: AlignOptions, *,
+                         depth: DepthReader | None = None) -> dict:
     """Each view's time shift against the rig's reference from depth (:mod:`align.view_sync`), for
     the views ``opts.view_sync`` selects; an observable result replaces the fit's shift (``kind``
     ``depth`` in aligned.json), and the reference view's own pair (fitted against another view)
-    takes minus that view's. Returns ``{view: ViewSync}``. Never reads ``truth/``."""
+    takes minus that view's. ``depth``: frames already read (shared with :func:`refine_multiview_rig`).
+    Returns ``{view: ViewSync}``. Never reads ``truth/``."""
     from align.view_sync import DepthFrames, frames_to_read, sync_view
 
     range_us = int(opts.shift_range_ms * 1000)
-    cache: dict[tuple[str, int], np.ndarray] = {}
-
-    def frames(sensor: str, stream: str, numbers: np.ndarray) -> np.ndarray:
-        for f in numbers:
-            if (sensor, int(f)) not in cache:
-                cache[(sensor, int(f))] = sess.read_depth(sensor, int(f), stream=stream)
-        return np.stack([cache[(sensor, int(f))] for f in numbers])
-
+    frames = depth or DepthReader(sess)
     syncs = {}
     todo = [v for v, pf in fits.items() if pf.setup.hq == rig.reference
             and (opts.view_sync == "always" or not pf.shift.observable)]
@@ -984,9 +1023,11 @@ def _align_multiview(sess: Session, out: Path, views: list[str], opts: AlignOpti
             fits[v] = fit_pair(setup, fit_opts)
         T_ref = {v: fits[v].T_lq_hq.inverse() for v in views if v != reference}
         rig = compose_rig(reference, T_ref)
+        depth = DepthReader(sess)   # read once for both
         if opts.rig_refine == "always" or (opts.rig_refine == "views" and not hqs):
-            rig = refine_multiview_rig(sess, fits, rig, progress=opts.progress)
-        syncs = sync_multiview_views(sess, fits, rig, opts) if opts.view_sync != "never" else {}
+            rig = refine_multiview_rig(sess, fits, rig, progress=opts.progress, depth=depth)
+        syncs = sync_multiview_views(sess, fits, rig, opts, depth=depth) if opts.view_sync != "never" else {}
+        del depth
         if reference in fits:  # reference view fitted against another view: a loop check
             other = views[1]
             rig.loop_errors.append((reference, other, *fits[reference].T_lq_hq.error_to(rig.T_dst_src(reference, other))))

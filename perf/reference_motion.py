@@ -88,6 +88,10 @@ def _scores(setup, warper, tr, pairs, rule: EdgeRule) -> dict:
     return out
 
 
+#: the ROI's background is the depth of the far surfaces over the scored pairs' frames, found where at least this
+#: many have depth (:func:`align.roi.background_depth`'s ``min_count``): with fewer pairs there is no ROI to score
+MIN_SCORED_FRAMES = 3
+
 FLOW_OPTIONS: dict = {}  # SceneFlow's keyword options (``--flow-stride``)
 
 
@@ -138,22 +142,32 @@ def _throughput(setup, warper, frames: int) -> tuple[tuple[float, float], tuple[
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sessions", nargs="+", help="simulated lq-hq sessions (with truth/)")
-    ap.add_argument("--frames", type=int, default=16, help="LQ frames per session (default: %(default)s)")
+    ap.add_argument("--frames", type=int, default=16,
+                    help=f"LQ frames per session (default: %(default)s; under {MIN_SCORED_FRAMES}: throughput only)")
     ap.add_argument("--speed-frames", type=int, default=40, help="pairs for the throughput (default: %(default)s)")
     ap.add_argument("--edges", choices=("strict", "midpoint"), default="strict",
                     help="the reference's edge rule, align.reference_edges (default: %(default)s, as align)")
     ap.add_argument("--flow-stride", type=int, default=None,
                     help="scene flow found for every N-th HQ sample (align.motion_flow.SceneFlow; default: its own)")
     args = ap.parse_args()
+    if args.frames < 0 or args.speed_frames < 0:
+        ap.error(f"--frames and --speed-frames must be >= 0, got {args.frames} and {args.speed_frames}")
     if args.flow_stride is not None:
         FLOW_OPTIONS["stride"] = args.flow_stride
     cv2.setNumThreads(1)
-    print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated (edges) MAE / RMSE / >50 mm | masked by "
-          "the motion | net reference pixels lost | scene flow MAE / RMSE / >50 mm | net lost (flow) |")
-    print("|---|---|---|---|---|---|---|---|")
+    scored = args.frames >= MIN_SCORED_FRAMES
+    if scored:
+        print("| session | time apart (ms) | plain MAE / RMSE / >50 mm | compensated (edges) MAE / RMSE / >50 mm | "
+              "masked by the motion | net reference pixels lost | scene flow MAE / RMSE / >50 mm | net lost (flow) |")
+        print("|---|---|---|---|---|---|---|---|")
+    else:
+        print(f"accuracy not scored: the region of interest's background needs --frames >= {MIN_SCORED_FRAMES} "
+              f"(align.roi.background_depth), got {args.frames}")
     for root in args.sessions:
         rule = EdgeRule.named(args.edges)
-        setup, warper, tr, pairs = _pairs(root, args.frames, rule)
+        setup, warper, tr, pairs = _pairs(root, max(args.frames, 1), rule)
+        if not scored:
+            continue
         s = _scores(setup, warper, tr, pairs, rule)
         dts = np.array([abs(p[2]) for p in pairs]) / 1000
         (pm, pr, pb, _, _), (cm, cr, cb, masked, lost), (fm, fr, fb, _, flost) = s["plain"], s["compensated"], s["flow"]

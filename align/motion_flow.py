@@ -123,7 +123,7 @@ DEFAULT_MAX_JUMP_M = 0.08
 DEFAULT_FILL_PX = 16
 #: factors tried on the optical flow (:class:`SceneFlow`'s ``gains``): DIS at its ultrafast preset finds
 #: 0.5-0.8 of the true image motion of moving people (measured against the simulator's, session 8)
-DEFAULT_GAINS = (1.0, 1.1, 1.2, 1.35, 1.5, 1.7)
+DEFAULT_GAINS = (1.1, 1.2, 1.35)
 #: a pair whose moving samples land on their own surface less often than this share (at the best gain) gets
 #: the flow again at DIS's ``FALLBACK_PRESET``
 FALLBACK_LANDED = 0.75

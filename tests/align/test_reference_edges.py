@@ -210,3 +210,66 @@ def test_footprint_rule_hides_what_the_dropped_near_samples_covered():
     assert strict[0] >= 200, acc  # the leaks exist on this scene
     assert fp[0] <= 0.5 * strict[0], acc
     assert fp[1] - strict[1] < 0.02 * fp[2], acc
+
+
+def _far_side_mixes_near(d, rng, *, offset_rel, fraction=0.5):
+    """Far-side samples next to a nearer surface (a 3x3 neighbour > 0.1 m nearer) replaced, with probability
+    ``fraction``, by a mix that reads ``offset_rel`` behind the near surface: within the warp's continuity test
+    (it links them into the near surface, one HQ step past its silhouette) but off the surface's line by more than
+    the noise. The truth there is the far surface."""
+    from scipy.ndimage import minimum_filter
+
+    f = np.where(np.isfinite(d), d, 99.0)
+    near = minimum_filter(f, 3)
+    band = np.isfinite(d) & (f - near > 0.1) & (rng.random(d.shape) < fraction)
+    return np.where(band, near * (1 + offset_rel), d).astype(np.float32), band
+
+
+def test_footprint_mixed_rule_drops_the_mixes_that_extend_a_near_surface_and_counts_what_it_drops():
+    """``footprint-mixed-fg`` against ``footprint-fg`` on slabs in front of a room whose HQ silhouettes carry far-side
+    mixes that read 0.8 % behind the near surface (linked by the warp's continuity test: 3 % jump, 1 % slope; off
+    the line by > 3 noise deviations at 0.1 % noise). ``footprint-fg`` warps them as the near surface one HQ step
+    too far: whole-jump errors inside the ROI. ``footprint-mixed-fg``'s reference is, by formula, the warp without
+    :func:`align.mixed_pixels.mixed_samples` (the plain warp's value kept where it is not in front of the background),
+    the pixels the plain warp had there and those more than OCCLUDER_REL behind the occluders masked, then the band;
+    its mask holds every pixel it dropped; and it leaves at most a quarter of footprint-fg's whole-jump errors."""
+    from align.mixed_pixels import mixed_samples
+    from align.pair_reference import PairReferences, ReferenceOptions
+    from align.reference_edges import OCCLUDER_REL, footprint_occluders
+    from align.roi import foreground_mask, in_front
+    from tests.align.scene import Rect
+
+    Kh, Kl, T_lq_hq, T_hq_world, T_lq_world = _rig(scale=0.5, distortion=False)
+    acc = {}
+    for s, (px, py, pz) in enumerate(((0.0, 0.2, 2.2), (-0.4, 0.1, 1.8), (0.5, 0.3, 2.6))):
+        shapes = room(person_at=(px, py, pz))[:4] + [Rect((px + dx, py, pz + 0.7), (0.3, 0, 0), (0, 0.6, 0))
+                                                     for dx in (-0.3, 0.3)]
+        rng = np.random.default_rng(10 + s)
+        dh = cast(Kh, T_hq_world, shapes)[0]
+        dh = (dh * (1 + 0.001 * rng.standard_normal(dh.shape))).astype(np.float32)
+        dh, _ = _far_side_mixes_near(dh, rng, offset_rel=0.008)
+        dl = cast(Kl, T_lq_world, shapes)[0].astype(np.float32)
+        bg = cast(Kl, T_lq_world, shapes[:3])[0].astype(np.float32)
+        lq = dl.copy()
+        for name in ("footprint-fg", "footprint-mixed-fg"):
+            r = PairReferences(lambda i: dh, K_hq=Kh, K_lq=Kl, T_lq_hq=T_lq_hq, t_hq_us=np.array([0]), background=bg,
+                               options=ReferenceOptions(reference_edges=name, motion=False))(0, 0.0)
+            roi = foreground_mask(np.where(np.isfinite(r.depth), r.depth, lq), bg) & np.isfinite(dl)
+            e = (r.depth - dl)[roi & np.isfinite(r.depth)]
+            a = acc.setdefault(name, np.zeros(3))
+            a += (int((np.abs(e) > 0.3).sum()), int((r.edge_mask & roi).sum()), int(roi.sum()))
+            if name == "footprint-mixed-fg":  # by formula
+                warper = DepthWarper(Kh, Kl, T_lq_hq, edge_reach=0.0)
+                plain, occ = warper(dh), footprint_occluders(warper, dh)
+                out = warper(np.where(mixed_samples(dh, edge_rel=0.03, k_sigma=3.0), np.nan, dh).astype(np.float32))
+                dropped = np.isfinite(plain) & ~np.isfinite(out)
+                out = np.where(dropped & ~in_front(plain, bg), plain, out)
+                dropped &= in_front(plain, bg)
+                hide = ((out - occ > OCCLUDER_REL * occ) & in_front(out, bg)) | dropped
+                hide |= occluded_side(np.where(hide, np.nan, out), radius_px=3) & in_front(out, bg)
+                assert np.array_equal(r.depth, np.where(hide, np.float32(np.nan), out), equal_nan=True)
+                assert not (dropped & ~r.edge_mask).any()   # every dropped pixel is counted as masked
+    fp, fm = acc["footprint-fg"], acc["footprint-mixed-fg"]
+    assert fp[0] >= 30, acc  # the near-looking mixes leave whole-jump errors in footprint-fg's reference
+    assert fm[0] <= 0.25 * fp[0], acc
+    assert fm[1] > fp[1], acc   # the dropped pixels are counted

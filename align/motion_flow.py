@@ -111,11 +111,13 @@ three gains instead of six, 1.1, 1.2 and 1.35 (six: 1.0-1.7; the vote's work hal
 more than 0.01 mm, every one within 1.5 mm of its synchronous frames), and bit-identical savings: the rig's rays
 and their rotation set up in 1.5 instead of 13 ms (once per :class:`SceneFlow`), the expansion's output filled once
 (0.3 ms). CPU throughput 0.56-0.58 of the plain warp against 0.52-0.56 for session 9's code, run for run (flow
-+6 % pairs per second). Tried and dropped (seeds 1-3, 5, 9, paired against the same pairs): fill radius 8 px
++6 % pairs per second; seed 1). On seed 5, where the finer flow runs on 4 of 30 consecutive pairs (5.8 ms
+each), 0.53-0.54 against 0.51-0.52. Tried and dropped (seeds 1-3, 5, 9, paired against the same pairs): fill radius 8 px
 (+0.08 mm [-0.00, +0.18]) or 12 px (+0.03 [-0.02, +0.08], seed 9 1.93 mm from synchronous), the expansion
 without its landing lookup (+0.22 [+0.19, +0.25]) or from its own block only (+0.85 [+0.55, +1.19]); the
 expansion branch-free over a packed per-sample table, the fill branch-free or packed (as fast or slower, same
-results); DIS on the eighth-size image at its finest level (0.1 ms less).
+results); DIS on the eighth-size image at its finest level (0.1 ms less); the finer flow with its patches 4 px apart
+(3.5 instead of 5.8 ms where it runs; all 18 seeds +0.05 mm [+0.01, +0.11], seeds 5 and 16 +0.37 and +0.35).
 """
 from __future__ import annotations
 

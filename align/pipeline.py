@@ -505,9 +505,11 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
     loss = ShiftLoss(probes, shift.T_init, setup.K_lq_color, t0_us=shift.t0_us)
     pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
     good = np.all(np.isfinite(pos), axis=1)
-    fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init)
+    fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init,
+                         clusters=fit_clusters(setup, loss)[good])
     if opts.refine_features:  # the keypoints' own localisation error, then T_ex again
-        fit = _refit_on_refined_keypoints(setup, probes, fit, shift, n_first=int(good.sum()))
+        fit, loss = _refit_on_refined_keypoints(setup, probes, fit, loss, shift, n_first=int(good.sum()))
+    fit = with_shift_uncertainty(fit, loss, shift)
     T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
     pf = PairFit(setup=setup, shift=shift, fit=fit, T_lq_hq=T_lq_hq, probes=probes, feature_residuals_px=fit.residuals_px,
                  candidates=n_cand, seconds=time.perf_counter() - t_start)
@@ -517,11 +519,29 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
     return pf
 
 
-def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: ExtrinsicFit, shift, *,
-                                n_first: int) -> ExtrinsicFit:
+#: The HQ depth image is cut into this many cells a side for the second clustering of the extrinsic fit's rows
+#: (:func:`fit_clusters`; the effect loop's feature phase clusters the same way, ``align.loop.loop.CELLS``).
+FIT_CELLS = 8
+
+
+def fit_clusters(setup: PairSetup, loss: ShiftLoss) -> np.ndarray:
+    """``(F, 2)`` cluster labels of the extrinsic fit's rows (:func:`align.extrinsics.cluster_covariance`): the
+    probe of each feature (one frame's timing and tracking) and the cell (:data:`FIT_CELLS` a side) of the HQ depth
+    image its HQ point lies in: still texture shows the same keypoints to every probe, and neighbouring keypoints'
+    placement errors are alike. Chosen over the keypoints themselves (a 2 px grid) on seeds 5001-5006, where it
+    covered every axis on all six; measured on held-out seeds (session 10, ``tidy`` notes)."""
+    K = setup.K_hq
+    uv = K.project(loss.points)
+    cx = np.clip((uv[:, 0] * FIT_CELLS) // K.width, 0, FIT_CELLS - 1)
+    cy = np.clip((uv[:, 1] * FIT_CELLS) // K.height, 0, FIT_CELLS - 1)
+    return np.stack([loss.probe_id, np.nan_to_num(cy * FIT_CELLS + cx, nan=-1).astype(np.int64)], axis=1)
+
+
+def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: ExtrinsicFit, first: ShiftLoss, shift, *,
+                                n_first: int) -> tuple[ExtrinsicFit, ShiftLoss]:
     """``T_ex`` fitted again on the photometrically refined keypoints (:func:`refine_probe_tracks`), or ``fit``
     itself when the refinement places fewer than ``REFINE_MIN_KEPT`` of the first fit's ``n_first``
-    correspondences. The probes are copied: the effect loop (align.loop) keeps the SIFT tracks (fed the refined
+    correspondences; with the tracks it was fitted on (``first``'s, or the refined ones). The probes are copied: the effect loop (align.loop) keeps the SIFT tracks (fed the refined
     ones, its residual scale halves and it accepted a lens k1 or a clock drift on 3 of 11 clean sessions)."""
     refined = [replace(p, tracks=p.tracks.copy()) for p in probes]
     refine_probe_tracks(setup, refined, fit.T, shift.shift_at(np.array([p.t_hq_us for p in refined])))
@@ -532,10 +552,46 @@ def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: Extr
     except UnobservableError:   # no refined track through a whole window
         kept = np.zeros(0, bool)
     if kept.sum() >= max(MIN_POINTS, REFINE_MIN_KEPT * n_first):
-        return fit_extrinsics(loss.points[kept], pos[kept], setup.K_lq_color, T_init=fit.T)
+        return fit_extrinsics(loss.points[kept], pos[kept], setup.K_lq_color, T_init=fit.T,
+                              clusters=fit_clusters(setup, loss)[kept]), loss
     log.warning("%s: the feature refinement placed only %d of %d keypoints; T_ex stays the fit of the keypoints as "
                 "detected", setup.session.root, int(kept.sum()), n_first)
-    return fit
+    return fit, first
+
+
+#: the step of the central difference that carries the time shift's uncertainty into ``T_ex``'s (us)
+SHIFT_STEP_US = 500.0
+
+
+def shift_sensitivity(loss: ShiftLoss, fit: ExtrinsicFit, shift: ShiftEstimate) -> np.ndarray:
+    """``(6,)``: d(rotation vector rad, translation m) of the fitted ``T_ex`` per microsecond of the time shift.
+
+    ``T_ex`` is fitted at the found shift; the moving features' LQ positions are interpolated along their tracks
+    at that instant, so an error of the shift moves them along their motion (people walk sideways: 1-1.4 mm of
+    ``t_x`` per ms on simulated people sessions). Central difference: the same rows refitted at the shift
+    +- :data:`SHIFT_STEP_US`. NaN when a refit fails.
+    """
+    drift = shift.drift_ppm * 1e-6
+    pos = [loss.lq_positions(shift.time_shift_us + d, drift)[0] for d in (SHIFT_STEP_US, -SHIFT_STEP_US)]
+    ok = np.all(np.isfinite(pos[0]), axis=1) & np.all(np.isfinite(pos[1]), axis=1)
+    try:
+        T = [fit_extrinsics(loss.points[ok], p[ok], loss.K, T_init=fit.T).T for p in pos]
+    except FeatureError:
+        return np.full(6, np.nan)
+    return (np.concatenate([T[0].rotvec(), T[0].t]) - np.concatenate([T[1].rotvec(), T[1].t])) / (2 * SHIFT_STEP_US)
+
+
+def with_shift_uncertainty(fit: ExtrinsicFit, loss: ShiftLoss, shift: ShiftEstimate) -> ExtrinsicFit:
+    """``fit`` with the time shift's variance carried into its covariance: ``cov + g g^T sd_shift^2``
+    (:func:`shift_sensitivity`); the pose is unchanged. Left as it is where the shift has no finite sd
+    (unobservable or declared: its error is not known here)."""
+    if not (np.isfinite(shift.std_us) and shift.std_us > 0):
+        return fit
+    g = shift_sensitivity(loss, fit, shift)
+    if not np.all(np.isfinite(g)):
+        return fit
+    return replace(fit, covariance=fit.covariance + np.outer(g, g) * shift.std_us ** 2,
+                   covariance_fit=fit.covariance)
 
 
 def calibrate_with_board(setup: PairSetup, opts: AlignOptions, shift_at) -> tuple[Transform, dict]:

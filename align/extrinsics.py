@@ -179,10 +179,10 @@ def fit_extrinsics(points: np.ndarray, pixels: np.ndarray, K: Intrinsics, *, T_i
     T, res = refine_extrinsics(P[inl], p[inl], K, T1, loss=loss, scale_px=scale_px)
     err = reprojection_errors(P, p, T, K)
     inliers = err < inlier_px
-    if groups is None:
-        cov = _covariance(res, inliers[inl])
-    else:
-        cov = cluster_covariance(P[inliers], p[inliers], K, T, groups[inliers], loss=loss, scale_px=scale_px)
+    cov = _covariance(res, inliers[inl])
+    if groups is not None:   # the independent one stays where the clusters cannot give a positive definite one
+        robust = cluster_covariance(P[inliers], p[inliers], K, T, groups[inliers], loss=loss, scale_px=scale_px)
+        cov = robust if np.all(np.isfinite(robust)) else cov
     full_err = np.full(good.shape[0], np.nan)
     full_err[good] = err
     full_in = np.zeros(good.shape[0], bool)
@@ -243,9 +243,11 @@ def cluster_covariance(points: np.ndarray, pixels: np.ndarray, K: Intrinsics, T:
     ``soft_l1``), ``B = sum over clusters of s_c s_c^T`` with the clusters' summed scores ``s_c = (J^T rho'(z) r)_c``
     (times ``G / (G - 1)``): errors may be correlated in any way within a cluster, independent between clusters.
     ``clusters`` ``(N,)`` labels (one way) or ``(N, 2)`` (two ways: ``V_a + V_b - V_ab`` over the intersections,
-    Cameron, Gelbach and Miller 2011; negative eigenvalues clipped). With one cluster per pair and the linear
+    Cameron, Gelbach and Miller 2011; where that is not positive definite, e.g. with fewer probes than pose
+    parameters, the conservative ``V_a + V_b``). With one cluster per pair and the linear
     loss it is White's heteroskedasticity-robust covariance, for equal noise close to ``sigma^2 (J^T J)^-1``.
-    Returns ``(6, 6)`` for (rotation vector rad, translation m); NaN where ``A`` is singular.
+    Returns ``(6, 6)`` for (rotation vector rad, translation m); NaN where ``A`` is singular or no positive definite
+    covariance results.
     """
     if loss not in ("linear", "soft_l1"):
         raise ValueError(f"cluster_covariance: loss must be linear or soft_l1, got {loss!r}")
@@ -261,11 +263,16 @@ def cluster_covariance(points: np.ndarray, pixels: np.ndarray, K: Intrinsics, T:
     s = J * (w_score * r)[:, None]
     lab = np.repeat(np.asarray(clusters).reshape(P.shape[0], -1), 2, axis=0)   # both rows of a pair
     if lab.shape[1] == 1:
-        return _sandwich(s, A_inv, lab[:, 0])
-    both = np.unique(lab[:, :2], axis=0, return_inverse=True)[1].reshape(-1)
-    V = _sandwich(s, A_inv, lab[:, 0]) + _sandwich(s, A_inv, lab[:, 1]) - _sandwich(s, A_inv, both)
-    e, U = np.linalg.eigh(0.5 * (V + V.T))
-    return (U * np.maximum(e, 0.0)) @ U.T
+        candidates = [_sandwich(s, A_inv, lab[:, 0])]
+    else:
+        both = np.unique(lab[:, :2], axis=0, return_inverse=True)[1].reshape(-1)
+        Va, Vb = _sandwich(s, A_inv, lab[:, 0]), _sandwich(s, A_inv, lab[:, 1])
+        candidates = [Va + Vb - _sandwich(s, A_inv, both), Va + Vb]
+    for V in candidates:
+        V = 0.5 * (V + V.T)
+        if np.linalg.eigvalsh(V).min() > 0:
+            return V
+    return np.full((6, 6), np.nan)
 
 
 # --------------------------------------------------------------------------- multi-view rigs

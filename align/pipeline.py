@@ -529,7 +529,8 @@ def fit_clusters(setup: PairSetup, loss: ShiftLoss) -> np.ndarray:
     probe of each feature (one frame's timing and tracking) and the cell (:data:`FIT_CELLS` a side) of the HQ depth
     image its HQ point lies in: still texture shows the same keypoints to every probe, and neighbouring keypoints'
     placement errors are alike. Chosen over the keypoints themselves (a 2 px grid) on seeds 5001-5006, where it
-    covered every axis on all six; measured on held-out seeds (session 10, ``tidy`` notes)."""
+    covered every axis on all six; held out: seeds 6001-6016 (drawn shift) and 7001-7010 (synchronous), session
+    10, ``tidy`` notes."""
     K = setup.K_hq
     uv = K.project(loss.points)
     cx = np.clip((uv[:, 0] * FIT_CELLS) // K.width, 0, FIT_CELLS - 1)
@@ -541,8 +542,9 @@ def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: Extr
                                 n_first: int) -> tuple[ExtrinsicFit, ShiftLoss]:
     """``T_ex`` fitted again on the photometrically refined keypoints (:func:`refine_probe_tracks`), or ``fit``
     itself when the refinement places fewer than ``REFINE_MIN_KEPT`` of the first fit's ``n_first``
-    correspondences; with the tracks it was fitted on (``first``'s, or the refined ones). The probes are copied: the effect loop (align.loop) keeps the SIFT tracks (fed the refined
-    ones, its residual scale halves and it accepted a lens k1 or a clock drift on 3 of 11 clean sessions)."""
+    correspondences; returned with the tracks it was fitted on (``first``'s, or the refined ones). The probes are
+    copied: the effect loop (align.loop) keeps the SIFT tracks (fed the refined ones, its residual scale halves and
+    it accepted a lens k1 or a clock drift on 3 of 11 clean sessions)."""
     refined = [replace(p, tracks=p.tracks.copy()) for p in probes]
     refine_probe_tracks(setup, refined, fit.T, shift.shift_at(np.array([p.t_hq_us for p in refined])))
     try:
@@ -583,9 +585,9 @@ def shift_sensitivity(loss: ShiftLoss, fit: ExtrinsicFit, shift: ShiftEstimate) 
 
 def with_shift_uncertainty(fit: ExtrinsicFit, loss: ShiftLoss, shift: ShiftEstimate) -> ExtrinsicFit:
     """``fit`` with the time shift's variance carried into its covariance: ``cov + g g^T sd_shift^2``
-    (:func:`shift_sensitivity`); the pose is unchanged. Left as it is where the shift has no finite sd
-    (unobservable or declared: its error is not known here)."""
-    if not (np.isfinite(shift.std_us) and shift.std_us > 0):
+    (:func:`shift_sensitivity`); the pose is unchanged. Left as it is where the shift is unobservable (its value a
+    placeholder, its error unknown) or has no finite sd."""
+    if not (shift.observable and np.isfinite(shift.std_us) and shift.std_us > 0):
         return fit
     g = shift_sensitivity(loss, fit, shift)
     if not np.all(np.isfinite(g)):

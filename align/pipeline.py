@@ -98,7 +98,8 @@ class AlignOptions:
     refine_features: after a first fit of ``T_ex``, move every matched LQ keypoint (and its track) to where
     the HQ colour patch around its HQ keypoint lies in the LQ image (:func:`align.features.refine_offsets`),
     drop the keypoints that cannot be refined, and fit ``T_ex`` again (:func:`refine_probe_tracks`). The
-    effect loop still sees the SIFT tracks; where it accepts an effect, its own ``T_lq_hq`` (from them) is kept.
+    effect loop chooses its effects on the SIFT tracks and, where it accepts one, refits its final model
+    (pose, shift and the accepted effects) on the refined tracks (``align.loop.run``).
     view_sync: multi-view rigs only: the time shift of a view against the rig's reference from the
     depth disagreement of what moves, given the calibrated rig (:mod:`align.view_sync`):
     ``unobservable`` (default: where colour features could not determine it, instead of the
@@ -472,6 +473,9 @@ class PairFit:
     board: dict | None = None  # ChArUco calibration summary when T_lq_hq came from a board
     loop: object | None = None  # align.loop.run.LoopResult when the effect loop ran
     rig_std: tuple[float, float] | None = None  # (m, deg) when T_lq_hq came from the refined multi-view rig
+    #: the probes with the photometrically refined LQ tracks ``fit`` was fitted on (None: not refined, or too
+    #: few placed); the effect loop refits its final model on them (``align.loop.run``)
+    refined_probes: list[Probe] | None = None
 
     def time_shift_at(self, t_hq_us) -> np.ndarray:
         return self.shift.shift_at(t_hq_us)
@@ -507,12 +511,13 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
     good = np.all(np.isfinite(pos), axis=1)
     fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init,
                          clusters=fit_clusters(setup, loss)[good])
+    refined = None
     if opts.refine_features:  # the keypoints' own localisation error, then T_ex again
-        fit, loss = _refit_on_refined_keypoints(setup, probes, fit, loss, shift, n_first=int(good.sum()))
+        fit, loss, refined = _refit_on_refined_keypoints(setup, probes, fit, loss, shift, n_first=int(good.sum()))
     fit = with_shift_uncertainty(fit, loss, shift)
     T_lq_hq = setup.T_lqdepth_lqcolor @ fit.T
     pf = PairFit(setup=setup, shift=shift, fit=fit, T_lq_hq=T_lq_hq, probes=probes, feature_residuals_px=fit.residuals_px,
-                 candidates=n_cand, seconds=time.perf_counter() - t_start)
+                 candidates=n_cand, seconds=time.perf_counter() - t_start, refined_probes=refined)
     if opts.board is not None:
         pf.T_lq_hq, pf.board = calibrate_with_board(setup, opts, pf.time_shift_at)
         pf.seconds = time.perf_counter() - t_start
@@ -539,12 +544,13 @@ def fit_clusters(setup: PairSetup, loss: ShiftLoss) -> np.ndarray:
 
 
 def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: ExtrinsicFit, first: ShiftLoss, shift, *,
-                                n_first: int) -> tuple[ExtrinsicFit, ShiftLoss]:
+                                n_first: int) -> tuple[ExtrinsicFit, ShiftLoss, list[Probe] | None]:
     """``T_ex`` fitted again on the photometrically refined keypoints (:func:`refine_probe_tracks`), or ``fit``
     itself when the refinement places fewer than ``REFINE_MIN_KEPT`` of the first fit's ``n_first``
-    correspondences; returned with the tracks it was fitted on (``first``'s, or the refined ones). The probes are
-    copied: the effect loop (align.loop) keeps the SIFT tracks (fed the refined ones, its residual scale halves and
-    it accepted a lens k1 or a clock drift on 3 of 11 clean sessions)."""
+    correspondences; returned with the tracks it was fitted on (``first``'s, or the refined ones) and the refined
+    probes (None where the first fit stands). The probes are copied: the effect loop (align.loop) searches on the
+    SIFT tracks (fed the refined ones, its residual scale halves and it accepted a lens k1 or a clock drift on 3 of
+    11 clean sessions) and refits the model it chose on the refined ones."""
     refined = [replace(p, tracks=p.tracks.copy()) for p in probes]
     refine_probe_tracks(setup, refined, fit.T, shift.shift_at(np.array([p.t_hq_us for p in refined])))
     try:
@@ -555,10 +561,10 @@ def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: Extr
         kept = np.zeros(0, bool)
     if kept.sum() >= max(MIN_POINTS, REFINE_MIN_KEPT * n_first):
         return fit_extrinsics(loss.points[kept], pos[kept], setup.K_lq_color, T_init=fit.T,
-                              clusters=fit_clusters(setup, loss)[kept]), loss
+                              clusters=fit_clusters(setup, loss)[kept]), loss, refined
     log.warning("%s: the feature refinement placed only %d of %d keypoints; T_ex stays the fit of the keypoints as "
                 "detected", setup.session.root, int(kept.sum()), n_first)
-    return fit, first
+    return fit, first, None
 
 
 #: the step of the central difference that carries the time shift's uncertainty into ``T_ex``'s (us)

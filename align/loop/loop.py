@@ -28,7 +28,7 @@ keypoint errors recur in every probe).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -424,15 +424,7 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
     free = _cols(model, accepted)
     r0, Jf = model.residuals(x), model.jacobian(x, columns=free)
     cov = sandwich_two_way(Jf, r0, group, np.repeat(_hq_cells(data), 2), c)
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-    pos_of = {int(i): k for k, i in enumerate(free)}
-    for f in findings:
-        e = next(e for e in lib if e.name == f.name)
-        idx = range(model.layout[e.name].start, model.layout[e.name].stop)
-        f.params = {pname: float(x[i]) for pname, i in zip(e.params, idx)}
-        f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, idx)}
-        if model_errors:
-            _add_model_error(f, dict(zip(e.params, e.model_errors(data))))
+    _set_params(model, lib, findings, x, cov, free, model_errors=model_errors)
     for e in fixed:
         sl = model.layout[e.name]
         findings.insert(0, Finding(e.name, "features", dict(zip(e.params, x[sl])), dict.fromkeys(e.params, 0.0),
@@ -444,6 +436,58 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
     before = feature_signatures(data, model.residuals(x_base), shift_us=s_b, stamps=st_b)
     after = feature_signatures(data, r0, shift_us=s_a, stamps=st_a)
     return cov, after_summary, before, after
+
+
+def _set_params(model: FeatureModel, lib, findings: list[Finding], x: np.ndarray, cov: np.ndarray, free: np.ndarray,
+                *, model_errors: bool) -> None:
+    """Each found effect's parameters at ``x`` with their deviations from ``cov`` (over the ``free``
+    columns), the effect's model error added in quadrature."""
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    pos_of = {int(i): k for k, i in enumerate(free)}
+    for f in findings:
+        if f.source != "found":
+            continue
+        e = next(e for e in lib if e.name == f.name)
+        idx = range(model.layout[e.name].start, model.layout[e.name].stop)
+        f.params = {pname: float(x[i]) for pname, i in zip(e.params, idx)}
+        f.std = {pname: float(sd[pos_of[i]]) for pname, i in zip(e.params, idx)}
+        f.extra.pop("std_fit", None)
+        f.extra.pop("model_error", None)
+        if model_errors:
+            _add_model_error(f, dict(zip(e.params, e.model_errors(model.data))))
+
+
+def refit_on_tracks(fl: FeatureLoop, data: FeatureData, *, max_nfev: int = 30, model_errors: bool = True,
+                    max_lost: float = 0.01) -> tuple[FeatureLoop | None, str]:
+    """The final model of the feature phase ``fl`` (pose, shift and the accepted effects, jointly;
+    declared effects stay at their values) fitted again, from ``fl``'s parameters, on ``data``: the
+    same probes with other LQ tracks (the photometrically refined keypoints,
+    ``align.pipeline.refine_probe_tracks``). The decisions stay ``fl``'s (stages, threshold,
+    signatures, held-out errors: the thresholds are calibrated on the tracks the search ran on); the
+    parameters, their cluster-robust covariance and the findings' values and deviations are the
+    refit's. The refit's Cauchy scale is 2.5 robust sigmas of its own residuals at ``fl``'s parameters
+    (the refined tracks' noise is about half the detected ones'). Returns ``(None, why)`` where the
+    refit runs an effect parameter to the end of its physical range or drops more than ``max_lost`` of
+    the feature rows in use at the start (:func:`refit_check`'s first two tests)."""
+    model = FeatureModel(data, fl.model.effects)
+    free = _cols(model, fl.accepted())
+    r = model.residuals(fl.x)
+    if not np.any(r != 0):
+        return None, "no refined feature inside its window"
+    c = float(max(0.1, 2.5 * 1.4826 * np.median(np.abs(r[r != 0]))))
+    x = refit(model, fl.x, free, c=c, max_nfev=max_nfev)
+    lo, hi = _ranges(model)
+    tol = AT_BOUND * np.where(np.isfinite(hi - lo), hi - lo, np.inf)
+    at = ((x - lo < tol) | (hi - x < tol))[free]
+    r_new = model.residuals(x)
+    lost = float(np.mean(r_new[r != 0] == 0))
+    if np.any(at) or lost > max_lost:
+        return None, f"refit at a bound ({np.any(at)}) or {100 * lost:.1f} % of rows left their window"
+    cov = sandwich_two_way(model.jacobian(x, columns=free), r_new, np.repeat(data.probe, 2),
+                           np.repeat(_hq_cells(data), 2), c)
+    findings = [replace(f, params=dict(f.params), std=dict(f.std), extra=dict(f.extra)) for f in fl.findings]
+    _set_params(model, model.effects, findings, x, cov, free, model_errors=model_errors)
+    return replace(fl, model=model, x=x, cov=cov, findings=findings), ""
 
 
 def _add_model_error(f: Finding, m: dict) -> None:
@@ -560,4 +604,4 @@ def fit_depth_effects(data: DepthData, *, declared: dict | None = None, options:
 
 
 __all__ = ["DepthLoop", "FeatureLoop", "Finding", "LoopOptions", "StageRecord", "fit_depth_effects",
-           "fit_feature_effects", "interpolate_tracks", "refit", "sandwich", "sandwich_two_way"]
+           "fit_feature_effects", "interpolate_tracks", "refit", "refit_on_tracks", "sandwich", "sandwich_two_way"]

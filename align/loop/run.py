@@ -4,10 +4,16 @@
 
 1. finds duplicated frames from the frame index's image hashes and counts dropped frames
    (:mod:`align.loop.effects.frames`); duplicated LQ colour frames leave the feature tracks;
-2. runs the feature phase (:func:`align.loop.loop.fit_feature_effects`) on the probes;
-3. warps the HQ depth of ``depth_pairs`` pairs spread over the session with the extended
+2. runs the feature phase (:func:`align.loop.loop.fit_feature_effects`) on the probes (the SIFT
+   tracks: the search's thresholds are calibrated on them);
+3. where it found an effect, refits the final model (pose, shift, accepted effects) on the probes'
+   photometrically refined tracks (``PairFit.refined_probes``, :func:`align.loop.loop.refit_on_tracks`),
+   which carry less of the keypoints' own localisation error: on the detected tracks the final
+   ``T_lq_hq`` is ~1 mm off in z, as the base fit was before its own refinement (session 9's ``extr``
+   notes); it falls back to the search's fit (warned) where the refinement kept too few features;
+4. warps the HQ depth of ``depth_pairs`` pairs spread over the session with the extended
    geometry and samples pixels away from depth edges, then runs the depth phase;
-4. returns a :class:`LoopResult` that :meth:`LoopResult.apply` writes into the pair's fit
+5. returns a :class:`LoopResult` that :meth:`LoopResult.apply` writes into the pair's fit
    (shift and drift, ``T_lq_hq``, LQ intrinsics, pairs to leave out, LQ depth correction).
 
 When the search adds nothing the base fit is kept as it is.
@@ -26,13 +32,19 @@ from align.loop.effects.depth import DepthData
 from align.loop.effects.frames import FrameFindings, drop_interval, duplicated
 from align.loop.effects.lens import add_coeffs
 from align.loop.features import pack_probes
-from align.loop.loop import DepthLoop, FeatureLoop, Finding, LoopOptions, fit_depth_effects, fit_feature_effects
+from align.loop.loop import (DepthLoop, FeatureLoop, Finding, LoopOptions, fit_depth_effects, fit_feature_effects,
+                             refit_on_tracks)
 from align.loop.stratify import Signature
 from align.time_shift import MODEL_ERROR_US
 from align.warp import DepthWarper
 from capture.camera import Intrinsics, Transform
 
 log = logging.getLogger(__name__)
+
+#: the share of the search's features (detected tracks) the refined tracks must keep for the final model
+#: to be refitted on them (as ``align.pipeline.REFINE_MIN_KEPT`` for the base fit), and a floor
+REFINED_MIN_KEPT = 0.25
+REFINED_MIN_FEATURES = 30
 
 
 @dataclass
@@ -53,6 +65,7 @@ class LoopResult:
     seconds: dict = field(default_factory=dict)
     base: dict = field(default_factory=dict)  # the base fit's geometry: T_lq_hq, K_lq, shift_us, drift_ppm, t0_us
     refit_tracks: bool = False  # duplicated LQ colour frames were taken out of the tracks
+    refined_fit: str = ""  # whether the final feature model was refitted on the refined tracks (step 3)
 
     @property
     def changed_geometry(self) -> bool:
@@ -74,6 +87,7 @@ class LoopResult:
     def summary_json(self) -> dict:
         fl = self.features
         return {"threshold_z": fl.threshold, "scale_px": fl.scale_px, "bootstrap_replicates": int(fl.null_z.size),
+                "refined_fit": self.refined_fit,
                 "stages": [{"stage": s.stage, "accepted": s.accepted, "undone": s.undone,
                             "candidates": {n: c.to_dict() for n, c in s.candidates.items()}} for s in fl.stages],
                 "depth_stages": [] if self.depth is None else [
@@ -203,16 +217,36 @@ def depth_samples(setup, *, T_lq_hq: Transform, K_lq: Intrinsics, shift_at, pair
 
 
 def close_loop(setup, pf, *, options: LoopOptions | None = None, correct_depth: bool = True,
-               depth_pairs: int = 24) -> LoopResult:
-    """Run the loop on one pair's base fit (module docstring). BLAS runs on one thread: the
+               depth_pairs: int = 24, refine: bool = True) -> LoopResult:
+    """Run the loop on one pair's base fit (module docstring). ``refine``: refit the final model on
+    the pair's refined tracks where an effect was found (step 3). BLAS runs on one thread: the
     loop's products are thin (thousands of rows, a dozen columns), where threads only contend."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1, user_api="blas"):
-        return _close_loop(setup, pf, options=options, correct_depth=correct_depth, depth_pairs=depth_pairs)
+        return _close_loop(setup, pf, options=options, correct_depth=correct_depth, depth_pairs=depth_pairs,
+                           refine=refine)
 
 
-def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, depth_pairs: int) -> LoopResult:
+def _refit_refined(setup, pf, fl: FeatureLoop, *, n_sift: int, skip, options: LoopOptions) -> tuple[FeatureLoop, str]:
+    """``fl``'s final model refitted on the pair's refined tracks (:func:`align.loop.loop.refit_on_tracks`),
+    or ``fl`` itself (with a warning) where the refinement left fewer than :data:`REFINED_MIN_KEPT` of the
+    ``n_sift`` features the search used, or the refit fails its checks. Returns the model and what happened."""
+    fd = pack_probes(pf.refined_probes, K_lq=setup.K_lq_color, K_hq=setup.K_hq_color,
+                     T_hqcolor_hqdepth=setup.T_hqdepth_hqcolor.inverse(), t0_us=pf.shift.t0_us, skip_lq_index=skip)
+    why = ""
+    if len(fd) < max(REFINED_MIN_FEATURES, REFINED_MIN_KEPT * n_sift):
+        why = f"the refinement kept {len(fd)} of {n_sift} features"
+    else:
+        out, why = refit_on_tracks(fl, fd, max_nfev=options.max_nfev, model_errors=options.model_errors)
+        if out is not None:
+            return out, f"refitted on {len(fd)} refined features (of {n_sift})"
+    log.warning("%s: the loop's model stays its fit of the detected keypoints (%s)", setup.session.root, why)
+    return fl, "fell back: " + why
+
+
+def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, depth_pairs: int,
+                refine: bool = True) -> LoopResult:
     o = options or LoopOptions()
     secs: dict[str, float] = {}
     t0, c0 = time.perf_counter(), time.process_time()
@@ -230,6 +264,12 @@ def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, 
     secs["features"] = time.perf_counter() - t1
     dup_colour = ff.duplicate_positions(f"{setup.lq}/{setup.lq_color}")
     found = any(f.source == "found" for f in fl.findings) or dup_colour.size > 0
+    refined_fit = ("not run: the model is the base fit's" if not found else "not run: no refined tracks" if refine
+                   else "not run: switched off")
+    if found and refine and getattr(pf, "refined_probes", None) is not None:
+        t1 = time.perf_counter()
+        fl, refined_fit = _refit_refined(setup, pf, fl, n_sift=len(fd), skip=dup_colour, options=o)
+        secs["features.refined_refit"] = time.perf_counter() - t1
     shift_us = fl.shift_us if found else pf.shift.time_shift_us
     drift = fl.drift_ppm if found else pf.shift.drift_ppm
     T_lq_hq = setup.T_lqdepth_lqcolor @ fl.T if found else pf.T_lq_hq
@@ -255,4 +295,4 @@ def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, 
     base = {"T_lq_hq": pf.T_lq_hq, "K_lq": setup.K_lq, "shift_us": pf.shift.time_shift_us,
             "drift_ppm": pf.shift.drift_ppm, "t0_us": t0_us}
     return LoopResult(fl, dl, ff, findings, shift_us, drift, T_lq_hq, K_lq, K_lq_color, dups, correct_depth, secs, base,
-                      bool(dup_colour.size))
+                      bool(dup_colour.size), refined_fit)

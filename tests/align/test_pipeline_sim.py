@@ -74,6 +74,10 @@ def test_dataset_layers_pairs_and_report(sim_plus55, aligned55):
     ds = AlignedDataset(out)
     assert len(ds) == res.kept > 40
     assert ds.meta["effects"] == [] and ds.meta["lq_sensor"] == "lq" and ds.meta["hq_sensor"] == "hq"
+    # nothing found: the loop's refit on the refined tracks does not run, T_lq_hq is the base fit's
+    assert ds.meta["loop"]["refined_fit"].startswith("not run: the model is the base fit"), ds.meta["loop"]["refined_fit"]
+    pf = res.views["lq"]
+    assert res.T_lq_hq.is_close(pf.setup.T_lqdepth_lqcolor @ pf.fit.T, 1e-9)
     lines = (out / "pairs.csv").read_text().splitlines()
     sess = open_session(sim_plus55)
     assert len(lines) - 1 == sess.timestamps_us("hq").size  # every HQ frame has a row, kept or not

@@ -131,6 +131,9 @@ def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptio
               f"(feature phase) or frame pairs (depth phase) -- contiguous time blocks with a gap -- by more than "
               f"z = {fl.threshold:.2f} (parametric bootstrap, {fl.null_z.size} replicates, false-alarm rate 1 % per "
               f"stage, never below 3) and the BIC falls. See `align/loop/`.", ""]
+    if loop.refined_fit.startswith(("refitted", "fell back")):
+        lines += [f"Final feature model (pose, shift, found effects' parameters) on the photometrically refined "
+                  f"keypoints, chosen on the detected ones: {loop.refined_fit}.", ""]
     if effects:
         lines += ["| effect | source | parameters (95 % interval) | z | held-out loss before -> after | look-alikes |",
                   "|---|---|---|--:|---|---|"]

@@ -50,6 +50,7 @@ def test_report_shows_the_loop(lens_dups):
     _, out, _, meta = lens_dups
     md = (out / "report.md").read_text()
     assert "## Effects the alignment model needed" in md and "`lens_lq_k1`" in md
+    assert "on the photometrically refined keypoints, chosen on the detected ones: refitted on" in md
     assert (out / "figures" / "loop_lens_lq_k1.png").is_file()
     assert "warped HQ reference vs truth, MAE" in md  # simulated: end-to-end error before/after
     assert meta["loop"]["heldout_features_px"]["after"]["median_abs"] < meta["loop"]["heldout_features_px"]["before"]["median_abs"]

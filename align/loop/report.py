@@ -117,6 +117,13 @@ def end_to_end(setup, pf, loop, truth, *, pairs: int = 12, reference: ReferenceO
     return out
 
 
+def _refined_fit_lines(loop) -> list[str]:
+    if not loop.refined_fit.startswith(("refitted", "fell back")):
+        return []
+    return [f"Final feature model (pose, shift, found effects' parameters) on the photometrically refined "
+            f"keypoints, chosen on the detected ones: {loop.refined_fit}.", ""]
+
+
 def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptions | None = None,
                  background=None) -> list[str]:
     """Markdown lines (and figures under ``root/figures``) for the loop of ``pf.loop``; ``reference``: how the
@@ -131,9 +138,7 @@ def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptio
               f"(feature phase) or frame pairs (depth phase) -- contiguous time blocks with a gap -- by more than "
               f"z = {fl.threshold:.2f} (parametric bootstrap, {fl.null_z.size} replicates, false-alarm rate 1 % per "
               f"stage, never below 3) and the BIC falls. See `align/loop/`.", ""]
-    if loop.refined_fit.startswith(("refitted", "fell back")):
-        lines += [f"Final feature model (pose, shift, found effects' parameters) on the photometrically refined "
-                  f"keypoints, chosen on the detected ones: {loop.refined_fit}.", ""]
+    lines += _refined_fit_lines(loop)
     if effects:
         lines += ["| effect | source | parameters (95 % interval) | z | held-out loss before -> after | look-alikes |",
                   "|---|---|---|--:|---|---|"]

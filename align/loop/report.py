@@ -137,8 +137,7 @@ def loop_section(root: Path, setup, pf, truth=None, *, reference: ReferenceOptio
     lines += [f"The search adds an effect of the library only when it lowers the robust error on held-out probes "
               f"(feature phase) or frame pairs (depth phase) -- contiguous time blocks with a gap -- by more than "
               f"z = {fl.threshold:.2f} (parametric bootstrap, {fl.null_z.size} replicates, false-alarm rate 1 % per "
-              f"stage, never below 3) and the BIC falls. See `align/loop/`.", ""]
-    lines += _refined_fit_lines(loop)
+              f"stage, never below 3) and the BIC falls. See `align/loop/`.", ""] + _refined_fit_lines(loop)
     if effects:
         lines += ["| effect | source | parameters (95 % interval) | z | held-out loss before -> after | look-alikes |",
                   "|---|---|---|--:|---|---|"]

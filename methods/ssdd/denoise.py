@@ -47,7 +47,7 @@ class _SSDDBase(LearnedDenoiser):
     param_help = _HELP
     # the paper's SSDD is the default of each: level 1 on the raw LQ depth, level 2 without motion, eq. 32 ungated
     not_in_paper = ("level1.prefilter.kind", "level2.motion.kind", "level1.gate.sigmas", "level2.gate.sigmas",
-                    "level2.level1_input")
+                    "level2.level1_input", "level2.offset")
 
     @staticmethod
     def schema():

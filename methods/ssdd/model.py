@@ -148,12 +148,27 @@ def level1_loss(data: DataConfig, *, holes: bool = False, gate: GateConfig | Non
     return loss
 
 
+def offset_free_target(reference: torch.Tensor, level1: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """The reference shifted so that level 2 learns no uniform offset (``level2.offset = "level1"``,
+    :mod:`methods.ssdd.config`): ``reference - median_M(reference - level1)`` with the median over the pixels
+    of ``mask`` of each image (the last three dimensions, ``(..., 1, H, W)``; an image without one is left as
+    it is). Against it, eq. 32's best uniform shift of an image is level 1's own offset."""
+    m = (mask > 0) & torch.isfinite(reference) & torch.isfinite(level1)
+    r = torch.where(m, reference - level1, torch.full_like(reference, float("nan")))
+    off = torch.nan_to_num(torch.nanmedian(r.flatten(start_dim=-3), dim=-1).values, nan=0.0)
+    return reference - off[..., None, None, None]
+
+
 def level2_loss(data: DataConfig, *, holes: bool = False, sequence_centre: bool = False,
-                motion: MotionConfig | None = None, gate: GateConfig | None = None):
+                motion: MotionConfig | None = None, gate: GateConfig | None = None, offset: str = "free"):
     """Eq. 32 loss of level 2 over every frame of a batch of sequences with a ``level1`` layer (and the
-    flow layers :data:`methods.ssdd.motion.FLOW_X`, ``FLOW_Y`` with ``motion``), on the ``gate``'s pixels."""
+    flow layers :data:`methods.ssdd.motion.FLOW_X`, ``FLOW_Y`` with ``motion``), on the ``gate``'s pixels;
+    with ``offset = "level1"`` against :func:`offset_free_target` (each frame of each crop)."""
     def loss(net, batch):
         pred = level2_depth(net, batch["level1"], batch["lq_depth"], batch["color"], data,
                             sequence_centre=sequence_centre, flow=batch_flow(batch), motion=motion)
-        return masked_l1(pred, batch["reference"], _mask(batch, holes, gate), batch["valid"])
+        mask, ref = _mask(batch, holes, gate), batch["reference"]
+        if offset == "level1":
+            ref = offset_free_target(ref, batch["level1"], mask * batch["valid"])
+        return masked_l1(pred, ref, mask, batch["valid"])
     return loss

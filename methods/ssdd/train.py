@@ -196,7 +196,7 @@ def train_lstm(ctx: RunContext) -> dict[str, Path]:
                  for ds in validation}
     job = FitJob(name="level 2", model=seeded(lambda: build_level2(l2), l2.optim.seed),
                  loss=level2_loss(l2.data, holes=cfg.loss_on_holes, sequence_centre=l2.centre == "sequence",
-                                  motion=l2.motion, gate=l2.gate),
+                                  motion=l2.motion, gate=l2.gate, offset=l2.offset),
                  train=_samples(train, l2.data, seed=l2.optim.seed, train=True, extra={"level1": oof, **motion}),
                  validation=_samples(validation, l2.data, seed=l2.optim.seed, train=False,
                                      extra={"level1": val_preds, **motion}),

@@ -31,7 +31,28 @@ Time-of-flight HQ (Kinect v2 / Azure-like), in depth:
 * ``sigma(z) = sigma0_m + sigma_slope * max(z - z0_m, 0)`` (0.5 mm + 1 mm per metre beyond
   0.5 m, i.e. 0.1 % of the distance beyond 0.5 m), white;
 * flying (mixed) pixels: where the true depth jumps by more than ``flying_jump_m`` inside a
-  3x3 window, a ``flying_fraction`` of the pixels take a random mix ``w z_near + (1-w) z_far``;
+  3x3 window, a ``flying_fraction`` of the pixels take a random mix ``w z_near + (1-w) z_far``,
+  with the weight ``w`` drawn by ``flying_mix``:
+
+  - ``"uniform"``: ``w ~ U[0, 1]`` whichever surface the pixel's centre sees (a pixel of the
+    background can read next to the foreground);
+  - ``"coverage"``: ``w`` is the share of the pixel's footprint the near surface covers. The
+    renderer samples the pixel centre, so a pixel whose own true depth is the near surface is at
+    least half covered by it: ``w ~ U[0.5, 1]``; one that sees the far surface, ``w ~ U[0, 0.5]``.
+    (A straight silhouette at a uniform sub-pixel offset gives exactly this: a pixel whose centre
+    lies ``d`` px from it, ``d ~ U[0, 1]`` for the pixels of a 3x3 jump, is mixed when ``d < 0.5``
+    (probability 0.5, ``flying_fraction``) with coverage ``0.5 + d`` of its own side.) The mixed
+    values then fall on the pixel's own side of the edge's midpoint, as the Azure Kinect's do
+    (session 10, ``docs/worklog/2026-11-24-s10/simtof.md``); the same random draws as
+    ``"uniform"``, mapped onto the half interval;
+  - ``"coverage-amplitude"``: the coverage ``c`` as above, weighted by the returned amplitude
+    ``albedo / z**2`` of the two surfaces (equal albedo): ``w = c a / (c a + 1 - c)`` with
+    ``a = (z_far / z_near)**2``: a phasor sum of the two returns, linearised;
+
+  and a ``flying_invalid_fraction`` of the flying pixels is invalidated instead (a depth engine
+  that detects mixed signals, as the Azure Kinect's does: on the real capture, at jumps > 0.2 m,
+  54 % of the edge band is invalid and 0.7 % of its valid pixels lie between the two sides;
+  session 10, ``simtof.md``; 0 by default: no draw, the random stream unchanged);
 * ``correlation_px`` (0 = white): the noise blurred by a Gaussian of that many pixels (unit variance kept);
   ``outlier_fraction`` as for stereo;
 * no measurement where the returned amplitude ``albedo / z**2`` is below ``min_amplitude``
@@ -89,6 +110,10 @@ class StereoNoise:
         return np.asarray(z_m) ** 2 * s / (focal_px * self.baseline_m)
 
 
+#: How a time-of-flight flying pixel weighs the near and far surface (module docstring).
+FLYING_MIXES = ("uniform", "coverage", "coverage-amplitude")
+
+
 @dataclass(frozen=True)
 class TofNoise:
     """Time-of-flight depth noise; see the module docstring for the model."""
@@ -98,12 +123,18 @@ class TofNoise:
     z0_m: float = 0.5
     flying_jump_m: float = 0.05
     flying_fraction: float = 0.5
+    flying_mix: str = "coverage"
+    flying_invalid_fraction: float = 0.0
     min_amplitude: float = 0.003
     min_depth_m: float = 0.5
     max_depth_m: float = 8.0
     correlation_px: float = 0.0
     outlier_fraction: float = 0.0
     model: str = "tof"
+
+    def __post_init__(self) -> None:
+        if self.flying_mix not in FLYING_MIXES:
+            raise SimulationError(f"flying_mix {self.flying_mix!r} is not one of {', '.join(FLYING_MIXES)}")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -330,6 +361,20 @@ def _measured_extras(z: np.ndarray, valid: np.ndarray, noise, rng: np.random.Gen
 
 
 # ----------------------------------------------------------------------------- time of flight
+def flying_weight(z: np.ndarray, z_near: np.ndarray, z_far: np.ndarray, u: np.ndarray, *, mix: str) -> np.ndarray:
+    """The near surface's weight ``w`` of a mixed pixel of true depth ``z`` between ``z_near`` and
+    ``z_far`` (its 3x3 window's), from uniform draws ``u`` in [0, 1), by ``mix`` (module docstring)."""
+    if mix == "uniform":
+        return u
+    own_near = (z - z_near) <= (z_far - z)
+    c = np.where(own_near, 0.5 + 0.5 * u, 0.5 * u).astype(np.float32)
+    if mix == "coverage":
+        return c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = np.where(z_near > 0, np.square(z_far / z_near), 1.0).astype(np.float32)
+    return (c * a / (c * a + 1 - c)).astype(np.float32)
+
+
 def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: np.random.Generator) -> NoisyDepth:
     """Simulate a time-of-flight depth image.
 
@@ -345,8 +390,9 @@ def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: n
     k = np.ones((3, 3), np.uint8)
     z_near, z_far = cv2.erode(zf, k), cv2.dilate(zf, k)
     flying = valid & (z_far - z_near > noise.flying_jump_m) & (rng.random(z_true.shape) < noise.flying_fraction)
-    w = rng.random(z_true.shape, dtype=np.float32)
-    z_mixed = np.where(flying, w * z_near + (1 - w) * np.minimum(z_far, far / 2), zf)
+    z_far = np.minimum(z_far, far / 2)
+    w = flying_weight(zf, z_near, z_far, rng.random(z_true.shape, dtype=np.float32), mix=noise.flying_mix)
+    z_mixed = np.where(flying, w * z_near + (1 - w) * z_far, zf)
     sigma = noise.sigma_z(z_mixed).astype(np.float32)
     n = correlated_normal(z_true.shape, noise.correlation_px, rng) if noise.correlation_px else \
         rng.standard_normal(z_true.shape, dtype=np.float32)
@@ -354,5 +400,7 @@ def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: n
     with np.errstate(divide="ignore", invalid="ignore"):
         dark = valid & (albedo / np.square(zf) < noise.min_amplitude)
     out_of_range = valid & ((z < noise.min_depth_m) | (z > noise.max_depth_m))
-    z[~valid | dark | out_of_range] = np.nan
+    dropped = flying & (rng.random(z_true.shape) < noise.flying_invalid_fraction) if noise.flying_invalid_fraction \
+        else np.zeros(z_true.shape, bool)
+    z[~valid | dark | out_of_range | dropped] = np.nan
     return NoisyDepth(z.astype(np.float32), {"flying": flying & ~dark, "dark": dark, "range": out_of_range})

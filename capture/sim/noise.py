@@ -51,10 +51,11 @@ Time-of-flight HQ (Kinect v2 / Azure-like), in depth:
     ``albedo / z**2`` of the two surfaces (equal albedo): ``w = c a / (c a + 1 - c)`` with
     ``a = (z_far / z_near)**2``: a phasor sum of the two returns, linearised;
 
-  and a ``flying_invalid_fraction`` of the flying pixels is invalidated instead (a depth engine
-  that detects mixed signals, as the Azure Kinect's does: on the real capture, at jumps > 0.2 m,
-  54 % of the edge band is invalid and 0.7 % of its valid pixels lie between the two sides;
-  session 10, ``simtof.md``; 0 by default: no draw, the random stream unchanged);
+  and a ``flying_invalid_fraction`` of the flying pixels across a jump over ``flying_invalid_jump_m``
+  is invalidated instead (a depth engine that detects mixed signals, as the Azure Kinect's does: on
+  the real capture, at jumps > 0.2 m, 54 % of the edge band is invalid and 0.7 % of its valid pixels
+  lie between the two sides, while at 0.1-0.2 m 1 % is invalid; session 10, ``simtof.md``; 0 by
+  default: no draw, the random stream unchanged);
 * ``correlation_px`` (0 = white): the noise blurred by a Gaussian of that many pixels (unit variance kept);
   ``outlier_fraction`` as for stereo;
 * no measurement where the returned amplitude ``albedo / z**2`` is below ``min_amplitude``
@@ -127,6 +128,7 @@ class TofNoise:
     flying_fraction: float = 0.5
     flying_mix: str = "coverage"
     flying_invalid_fraction: float = 0.0
+    flying_invalid_jump_m: float = 0.2
     min_amplitude: float = 0.003
     min_depth_m: float = 0.5
     max_depth_m: float = 8.0
@@ -402,7 +404,9 @@ def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: n
     with np.errstate(divide="ignore", invalid="ignore"):
         dark = valid & (albedo / np.square(zf) < noise.min_amplitude)
     out_of_range = valid & ((z < noise.min_depth_m) | (z > noise.max_depth_m))
-    dropped = flying & (rng.random(z_true.shape) < noise.flying_invalid_fraction) if noise.flying_invalid_fraction \
-        else np.zeros(z_true.shape, bool)
+    dropped = np.zeros(z_true.shape, bool)
+    if noise.flying_invalid_fraction:
+        dropped = flying & (z_far - z_near > noise.flying_invalid_jump_m) & \
+            (rng.random(z_true.shape) < noise.flying_invalid_fraction)
     z[~valid | dark | out_of_range | dropped] = np.nan
     return NoisyDepth(z.astype(np.float32), {"flying": flying & ~dark, "dark": dark, "range": out_of_range})

@@ -3,6 +3,7 @@ direct per-pixel loop on a step edge: a pixel of the far surface mixes at most h
 one in (``"coverage"``), the near surface's at least half; ``"uniform"`` lets far pixels read near."""
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -71,8 +72,10 @@ def test_flying_mix_is_checked():
         TofNoise(flying_mix="linear")
 
 
-def test_flying_invalid_fraction_drops_that_share_of_the_mixes_and_nothing_else():
+def test_flying_invalid_fraction_drops_that_share_of_the_large_jumps_mixes_and_nothing_else():
     z = _step(80, 80)
+    z[40:, :] = Z_NEAR + 0.15  # the lower half: 0.15 m jumps (under flying_invalid_jump_m) to the upper left
+    z[40:, 40:] = Z_NEAR + 0.3  # and between the lower quadrants; 1.7 m to the upper right
     base = TofNoise(sigma0_m=0.0, sigma_slope=0.0, min_depth_m=0.1)
     ref = _loop_reference(z, base, 5)  # the same first draws: which pixels mix, and how
     mixed = np.abs(ref - z) > 1e-6
@@ -80,6 +83,10 @@ def test_flying_invalid_fraction_drops_that_share_of_the_mixes_and_nothing_else(
                                                        flying_invalid_fraction=0.7),
                     rng=np.random.default_rng(5)).depth
     gone = ~np.isfinite(got)
+    lo = cv2.erode(z, np.ones((3, 3), np.uint8)); hi = cv2.dilate(z, np.ones((3, 3), np.uint8))
+    small = mixed & (hi - lo < 0.2)
+    assert small.sum() > 20 and not (gone & small).any()  # mixes across jumps under 0.2 m stay
+    mixed &= ~small
     assert not (gone & ~mixed).any()  # only mixes are dropped
     np.testing.assert_allclose(got[~gone], ref[~gone], atol=1e-5)
     share = gone.sum() / mixed.sum()

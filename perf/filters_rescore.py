@@ -36,7 +36,7 @@ METHODS = ("raw", "gaussian", "bilateral", "joint_bilateral", "rolling_guidance"
 def frames_of(variant: str, seed: int, work: Path):
     """``(lq_depth, lq_color, lq_truth)`` per LQ frame of ``variant``'s session, and the LQ intrinsics."""
     from capture.session import open_session
-    from capture.sim.simulate import simulate
+    from capture.sim.simulator import simulate
     from capture.truth import read_truth
 
     scene, _, profile = variant.partition(":")

@@ -39,7 +39,7 @@ from capture.session import encode_frame, open_session  # noqa: E402
 def ensure_source(path: Path | None, seconds: float) -> Path:
     if path is not None and (path / "session.json").exists():
         return path
-    from capture.sim.simulate import simulate
+    from capture.sim.simulator import simulate
 
     target = path or Path(tempfile.mkdtemp(prefix="record-rate-src-")) / "sim-lq-hq"
     print(f"simulating lq-hq for {seconds:g} s into {target} ...", flush=True)

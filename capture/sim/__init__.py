@@ -7,7 +7,8 @@ read the truth back with :func:`capture.truth.read_truth`.
 Modules: ``scene`` (meshes and motion), ``texture`` (procedural colour fixed to surfaces),
 ``rigs`` (sensors and poses), ``noise`` (stereo and ToF physics), ``clocks`` (per-sensor
 clocks, drops), ``render`` (batched Open3D ray casting), ``sensors`` (hits to frames),
-``output`` (session.json and truth/), ``simulate`` (the library function).
+``output`` (session.json and truth/), ``simulator`` (the library function :func:`simulate`; the module is
+not named ``simulate``: importing a submodule binds its name on the package, which would hide the function).
 """
 from capture.sim.effects import EFFECTS, parse_effects
 from capture.sim.errors import SimulationError
@@ -23,7 +24,7 @@ def __getattr__(name: str):
     if name in ("simulate", "SimulationResult"):
         import importlib
 
-        module = importlib.import_module("capture.sim.simulate")  # binds the submodule to the name...
-        globals().update(simulate=module.simulate, SimulationResult=module.SimulationResult)  # ...rebind it
+        module = importlib.import_module("capture.sim.simulator")
+        globals().update(simulate=module.simulate, SimulationResult=module.SimulationResult)
         return globals()[name]
     raise AttributeError(f"module 'capture.sim' has no attribute {name!r}")

@@ -58,7 +58,7 @@ FILTERS = {"gaussian": gaussian_filter, "bilateral": bilateral_filter, "rolling_
 def frames_of(seed: int, work: Path) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """``(lq_depth, lq_color, lq_truth)`` of every LQ frame of the simulated session ``seed``."""
     from capture.session import open_session
-    from capture.sim.simulate import simulate
+    from capture.sim.simulator import simulate
     from capture.truth import read_truth
 
     root = work / f"people_seed{seed}"

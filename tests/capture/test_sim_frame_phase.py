@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from capture.sim import SimulationError
-from capture.sim.simulate import make_plan
+from capture.sim.simulator import make_plan
 from tests.conftest import assert_one_line_error
 
 PLAN = dict(rig="lq-hq", scene="planes", seconds=2.0, seed=5, effects=None, undeclared=False, time_shift_us=None,

@@ -14,7 +14,7 @@ from methods import get
 @pytest.fixture(scope="module")
 def frames(tmp_path_factory):
     from capture.session import open_session
-    from capture.sim.simulate import simulate
+    from capture.sim.simulator import simulate
     from capture.truth import read_truth
 
     root = tmp_path_factory.mktemp("sim") / "S"

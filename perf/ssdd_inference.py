@@ -7,7 +7,10 @@ For each width the script writes a weights file of an untrained network of that 
 not depend on the values), builds ``ssdd_unet`` / ``ssdd_lstm`` from it exactly as ``bench run`` does,
 and times ``denoise`` (level 1) and ``denoise_step`` (levels 1 + 2, state carried) on a synthetic
 640x480 frame. Reference in the same run: the hole-aware bilateral filter (``bf``) on the same frame.
-Prints milliseconds per frame (median, min) and the ratio to ``bf``. Target (issue 10): < 100 ms at
+Prints milliseconds per frame (median, min), the ratio to ``bf``, and the convolutions' multiply-adds
+per frame (``GMAC``, counted by a forward hook: independent of the machine's load) with the rate
+they ran at (``GMAC/s`` at the median). Nearly all of a frame's time is these convolutions (issue 10
+worklog, session 10), so ``GMAC`` over a quiet machine's rate says what a shape can reach. Target (issue 10): < 100 ms at
 the default width (16) on two CPU cores. ``--prefilter bilateral`` times level 1 with its bilateral
 prefilter (one ``bf`` pass more per frame); ``--fold-mean`` feeds level 2 the mean of the fold models
 (``level2.level1_input = "fold_mean"``: k = 2 level-1 passes per frame). ``--motion color`` (or
@@ -68,6 +71,23 @@ def _time(fn, frames: int) -> list[float]:
     return out
 
 
+def _gmac(fn) -> float:
+    """Multiply-adds (10^9) of the ``Conv2d`` modules that one call of ``fn`` runs."""
+    count = [0]
+
+    def hook(module, inputs, output):
+        if isinstance(module, torch.nn.Conv2d):
+            k = module.weight.shape[1] * module.weight.shape[2] * module.weight.shape[3]
+            count[0] += output.numel() * k
+
+    handle = torch.nn.modules.module.register_module_forward_hook(hook)
+    try:
+        fn()
+    finally:
+        handle.remove()
+    return count[0] / 1e9
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--widths", default="8,16,32")
@@ -86,7 +106,7 @@ def main() -> int:
     ref = _time(lambda: bf.denoise(depth), a.frames)
     print(f"640x480, {a.threads} torch threads, {a.frames} frames; reference bf: median {np.median(ref):.1f} ms")
     print(f"{'width':>5} {'levels':>6} {'prefilter':>9} {'motion':>6} {'method':>10} {'median ms':>10} {'min ms':>8} "
-          f"{'x bf':>6}")
+          f"{'x bf':>6} {'GMAC':>6} {'GMAC/s':>7}")
     with tempfile.TemporaryDirectory() as tmp:
         for width, pre, mo in ((int(w), p, m) for w in a.widths.split(",") for p in a.prefilter.split(",")
                                for m in a.motion.split(",")):
@@ -103,8 +123,9 @@ def main() -> int:
                 (("ssdd_unet", lambda: unet.denoise(depth)), ("ssdd_lstm", step))
             for name, fn in todo:
                 t = _time(fn, a.frames)
+                g = _gmac(fn)
                 print(f"{width:>5} {a.levels:>6} {pre:>9} {mo:>6} {name:>10} {np.median(t):>10.1f} {min(t):>8.1f} "
-                      f"{np.median(t) / np.median(ref):>6.2f}")
+                      f"{np.median(t) / np.median(ref):>6.2f} {g:>6.2f} {g / np.median(t) * 1000:>7.1f}")
     return 0
 
 

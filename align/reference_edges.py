@@ -29,186 +29,34 @@ pixels on the far side of a reference depth edge, within ``mask_px`` (3) of a su
 ``edge_rel`` nearer, are masked (NaN), which removes most of the first. Every masked pixel is
 counted and reported.
 
-Measured on a demo-like session (``capture simulate --rig lq-hq --scene people --seconds 3
---seed 0``, scale 1, the smooth figures):
+The rules (:data:`RULES`, :class:`EdgeRule`):
 
-=====================================  ==============  ==============
-HQ sensor against truth                midpoint        strict
-=====================================  ==============  ==============
-MAE / RMSE, leaderboard (90 frames)    6.32 / 69.6 mm  2.26 / 8.09 mm
-pixels > 50 mm off, truth geometry     0.73 %          0.043 %
-ROI pixels masked by the rule          0               2.9 %
-ROI pixels without reference (all)     6.5 %           12.6 %
-=====================================  ==============  ==============
+* ``"midpoint"``: the plain warp: guess, mask nothing.
+* ``"strict"``: the rule above.
+* ``"mixed"``: also drops the HQ time-of-flight mixes :func:`align.mixed_pixels.mixed_samples` can tell (off
+  their surface's line by more than 3 noise deviations, or isolated) and masks what their footprint hides.
+* ``"strict-fg"`` / ``"mixed-fg"``: mask as their base rule, but only where the reference is in front of the
+  ROI's background model (:func:`align.roi.in_front`): far samples that land inside a silhouette are outside
+  the ROI whatever is done with them, and masking them only hands them to the LQ depth, whose stereo edge
+  fattening puts them back into the ROI, scored against the truth but not against the reference.
+* ``"footprint-fg"`` (the default): ``"strict-fg"`` plus footprint occluders. Every HQ sample near an edge,
+  the ones the warp drops included, is splatted over its footprint (:func:`footprint_occluders`, 2.5
+  footprints wide), and reference pixels more than 10 % behind it are masked. A nearer surface whose last HQ
+  samples the warp cannot link (mixes, a grazing side) otherwise ends short in the reference, and the
+  mid-ground samples the HQ camera saw beside it fill the gap inside the LQ silhouette.
+* ``"footprint-mixed-fg"``: ``"footprint-fg"`` without warping the mixes ``"mixed"`` drops (they still occlude);
+  what they covered is masked and counted.
 
-(``perf/reference_error.py`` for rows 2-4, 6 pairs with truth's geometry; ``bench run`` for row 1.)
-The cost is the masked band (2.9 % of the ROI) plus the gap no sample covers (3.2 %). What is
-left (RMSE still 3.6x MAE) is the silhouette position inside one HQ step next to holes of the
-reference (the large errors left lie within 2 px of a hole, 83 % with the reference nearer),
-which no rule on the HQ depth alone can recover; masking the near side of such edges as well
-bought RMSE 8.9 mm for another 2.8 % of the ROI and is not done. ``"midpoint"`` keeps the plain
-warp: guess, mask nothing.
+Where it stands (issue 12 asks for the HQ sensor's RMSE within 2x its MAE against the truth, with no more than
+2 % of the ROI masked; the demo, 60 frames, through ``align``): ``"footprint-fg"`` reads 2.63 [1.98, 3.34] at
+1.79 % masked (held-out seeds 1 / 2 / 4: 4.02 / 2.79 / 2.47), with the simulator's coverage-weighted
+time-of-flight mixes of session 10. ``"footprint-mixed-fg"`` and ``"mixed-fg"`` reach about 2, but at
+3.4-5.4 % masked (measured with the older uniform mixes). What is left are ToF mixes within the warp's
+continuity test of the near surface, slits between limbs thinner than one HQ step (or moving within the
+~0.5 ms between the two exposures), and concave corners. The HQ depth tells none of them from a true
+surface pixel. Cost: :func:`footprint_occluders` about 2 ms CPU per demo frame, beside the plain warp's 2.2 ms.
 
-Traced further on the demo (scale 0.5, issue 12): after the strict rule, 96 % of the reference's
-squared error comes from 0.02 % of its ROI pixels, each off by more than 0.3 m (a surface the LQ
-camera does not see there); the same warp of the noise-free HQ depth has almost none of them. They
-are the HQ sensor's time-of-flight mixed samples (:mod:`align.mixed_pixels`): a mix near one surface
-warped as that surface one HQ step off the silhouette, or a near surface's mixed last samples dropped
-so that the background the HQ camera saw beside it shows through inside the LQ silhouette, beyond the
-3 px band. ``"mixed"`` (not the default) drops the mixed samples it can tell (off their surface's
-line by more than 3 noise deviations, or isolated) and masks what their footprint, at the nearest
-depth around them, hides. ``perf/reference_error.py``, 30 pairs, truth's geometry, mean over frames
-(the leaderboard's "HQ sensor" column):
-
-=====================  ==========================  ==========================
-demo-like session      strict: MAE / RMSE, masked  mixed: MAE / RMSE, masked
-=====================  ==========================  ==========================
-seed 0 (the demo)      2.45 / 10.46 mm, 3.6 %      2.16 / 4.93 mm, 7.6 %
-seed 1 (held out)      2.49 / 12.87 mm, 3.7 %      2.28 / 8.80 mm, 7.1 %
-seed 2 (held out)      2.35 / 9.21 mm, 3.2 %       2.13 / 4.77 mm, 6.9 %
-seed 3 (held out)      2.48 / 10.29 mm, 3.6 %      2.24 / 7.12 mm, 7.9 %
-=====================  ==========================  ==========================
-
-"masked": ROI pixels where the plain warp has depth and the reference none. What ``"mixed"`` leaves
-(80-96 % of the squared error still from pixels > 0.3 m off) are mixes within the noise of one
-surface, which no test on their value can tell from a true last sample, and structures thinner than
-one HQ step (a 1-LQ-pixel gap between limbs); only a band along every silhouette would remove them.
-
-The band's width against its cost (demo, 30 pairs, session 6): strict with a 1 / 2 / 3 px band masks
-1.6 / 2.8 / 3.6 % of the ROI for RMSE / MAE 8.0 / 6.2 / 4.3; mixed with 0 / 1 / 2 / 3 px, 4.9 / 5.7 / 6.5 /
-7.6 % for 7.3 / 6.6 / 3.6 / 2.3. Masking only the side of an edge away from the HQ camera (the side its
-far samples can intrude on, through the 12.5 cm baseline) keeps 3.2 of the 3.6 %: the band is spent
-where it is needed, the other side is holes already. Masking only one HQ step at the near depth beyond
-each edge (1.7 %) leaves RMSE / MAE 7.7: the intrusions are deeper, where the last near samples were mixed.
-
-**Masking only what is scored (``"strict-fg"``, ``"mixed-fg"``; issue 12, session 8).** The ROI is
-computed from the reference, with the LQ depth where the reference has none
-(:func:`align.pipeline.write_pair_dataset`). Traced on the demo (30 pairs), every pixel more than 0.3 m
-off that the strict rule's band is there to remove lies on a surface that is itself in front of the
-background (one person seen through the edge of another, at 2.8-3.7 m against a 5 m wall): far
-samples of the wall that land inside a silhouette read as background and are outside the ROI whatever
-is done with them. Masking them only hands them to the LQ depth, whose stereo edge fattening puts them
-back into the ROI, unscored against the reference but scored against the truth (the pixels that flip
-the leaderboard's order, ``perf/reference_ranking.py``). The ``-fg`` rules mask as their base rule but
-only where the reference is in front of the ROI's background model (:func:`align.roi.in_front`; the
-``mixed`` rule's warp keeps the plain warp's value where that is background). They need that model,
-which ``align`` computes from the references before it writes them; without it they mask as their base.
-``perf/reference_error.py SESSION --frames 30`` (truth's geometry, per-frame means as the leaderboard's
-"HQ sensor"; "masked": ROI pixels where the rule's warp has depth and the reference none):
-
-==================  =====================  =====================  =====================  =====================
-session             strict: RMSE/MAE, mask strict-fg               mixed                  mixed-fg
-==================  =====================  =====================  =====================  =====================
-demo (seed 0)       11.57/2.70, 3.64 %     11.55/2.69, 1.28 %     5.95/2.36, 7.96 %      5.94/2.36, 5.38 %
-seed 1 (held out)   11.82/2.74, 4.11 %     11.82/2.74, 1.08 %     7.92/2.48, 7.92 %      7.93/2.48, 4.58 %
-seed 2 (held out)   11.89/2.67, 3.64 %     11.34/2.65, 1.00 %     5.78/2.38, 7.56 %      5.76/2.37, 4.63 %
-seed 3 (held out)   11.51/2.31, 3.29 %     11.49/2.31, 1.19 %     5.93/2.06, 6.97 %      5.93/2.06, 4.62 %
-seed 4 (held out)   12.98/2.54, 3.53 %     12.91/2.53, 0.98 %     5.38/2.19, 7.10 %      5.36/2.18, 4.26 %
-==================  =====================  =====================  =====================  =====================
-
-(held-out sessions: ``capture simulate --rig lq-hq --scene people --seconds 2 --seed S --scale 0.5
---time-shift-ms 25 --frame-phase-ms 1``, the demo's with its frames ~1 ms apart; seed 3 without the
-phase option.) Same errors, a third (strict) or three fifths (mixed) of the masked share. Through
-``align`` itself (its fit, 60 frames) and the leaderboard's "HQ sensor" column (RMSE / MAE with its 95 %
-bootstrap interval over frames; ROI masked as ``aligned.json`` counts it):
-
-==================  ===================  ===================  ===================
-session             strict               strict-fg            mixed-fg
-==================  ===================  ===================  ===================
-demo (seed 0)       3.52, 3.81 %         3.52, 1.35 %         1.98 [1.61, 2.47], 5.43 % (mixed: 8.12 %)
-seed 1 (held out)   4.51, 3.69 %         4.49, 1.04 %         3.29 [2.36, 4.46], 4.60 %
-seed 2 (held out)   4.15, 3.02 %         4.13, 0.94 %         2.13 [1.63, 2.73], 4.61 %
-seed 4 (held out)   3.15, 3.53 %         3.14, 0.94 %         1.89 [1.43, 2.48], 4.22 %
-==================  ===================  ===================  ===================
-
-So neither meets issue 12's pair (RMSE within 2x MAE at no more than 2 % masked): ``strict-fg`` keeps
-the mask under 2 % and the ratio at 3-4.5, ``mixed-fg`` brings the ratio to about 2 at 4-5.5 %. Cost:
-``strict-fg`` adds one comparison per pixel (60 references of the demo: 0.33 against 0.31 CPU-s),
-``mixed-fg`` three warps per frame, as ``mixed`` (1.25 CPU-s; ~2 CPU-s more per ``align`` of the demo,
-whose step takes ~20). What is
-left of the RMSE is not the band: 75-90 % of the squared error comes from a few pixels a whole jump off
-next to a hole of the reference, the time-of-flight mixes :mod:`align.mixed_pixels` cannot tell from
-true samples (and the ``mixed`` rule's removal of the ones it can tell costs 3.5 % of the ROI, of which
-3 % were right). Colour does not tell them apart either on these scenes: the HQ colour image, seen at
-either candidate depth, names the side of an HQ edge sample wrongly in 27-34 % of cases
-(``notes/refedge_scripts/colfeas.py``; the surfaces' random colour mosaic looks alike on both sides).
-
-**Footprint occluders (``"footprint-fg"``, the default; issue 12, session 9).**
-Traced on the demo (``strict-fg``, 60 frames): 71 ROI pixels of 452 232 are off by more than 0.3 m, and masking
-them alone would bring the ratio from 3.52 to 1.75. Two kinds. *Reference farther* (about two thirds): a
-nearer surface's last HQ samples are mixes or isolated samples the warp cannot link into a surface (a person's
-side at a grazing angle), so the nearer surface ends in the reference several pixels short, and the samples
-of the mid-ground surface the HQ camera saw beside it fill the gap inside the LQ silhouette; the band misses
-them, since no nearer *reference* pixel lies within 3 px. The dropped samples are still evidence that
-something that near lies within their pixel: :func:`footprint_occluders` splats every HQ sample near an edge
-over its footprint (2.5 footprints wide), and ``"footprint-fg"`` masks reference pixels more than 10 % behind
-it (in front of the background, as ``strict-fg``). *Reference nearer* (the rest): a gap between two limbs or
-people thinner than one HQ step from the HQ camera's side (the HQ depth shows one continuous surface, the LQ
-camera sees the wall through a 1-2 px slit), or a near surface's last sample's splat one pixel past a
-diagonal silhouette. The HQ depth holds nothing that tells these apart from a true surface pixel, in this
-frame or the neighbouring ones (the two neighbouring HQ frames, warped alike, vote against none of the 71).
-Through ``align`` (60 frames, the leaderboard's "HQ sensor" RMSE / MAE with its 95 % bootstrap interval over
-frames; masked as ``aligned.json`` counts it; ``notes/refedge9_scripts/hqsensor.py``):
-
-==================  ===========================  ===========================
-session             strict-fg                    footprint-fg
-==================  ===========================  ===========================
-demo (seed 0)       3.52 [2.80, 4.30], 1.35 %    2.85 [2.25, 3.54], 1.53 %
-seed 1 (held out)   4.49 [3.31, 5.68], 1.04 %    4.45 [3.33, 5.65], 1.13 %
-seed 2 (held out)   4.13 [3.12, 5.21], 0.94 %    3.19 [2.51, 3.91], 1.12 %
-seed 4 (held out)   3.14 [2.32, 4.15], 0.94 %    2.38 [1.95, 2.87], 1.05 %
-==================  ===========================  ===========================
-
-The ratio falls on every held-out session (paired bootstrap over frames, footprint-fg - strict-fg: seed 1
--0.03 [-0.09, 0.00], seed 2 -0.93 [-1.77, -0.20], seed 4 -0.76 [-1.51, -0.17]; demo -0.67 [-1.17, -0.23];
-``notes/refedge9_scripts/paired_ratio.py``), so it is the default (``strict-fg`` was, for part of session 9).
-With the photometric keypoint refinement of T_lq_hq (its +1.1 mm z error gone; the MAE falls, so the ratio rises):
-demo strict-fg 4.11 [3.22, 4.98] at 1.35 %, footprint-fg 3.44 [2.66, 4.32] at 1.54 % (paired -0.67 [-1.18, -0.21]);
-the 27 pixels left > 0.3 m off are all of the second kind. With the warp's diagonal cut (:mod:`align.warp`
-step 4, :func:`align.warp_splat.diagonal_cuts`) 3.10 [2.41, 3.92] at 1.50 % (paired -0.34 [-0.76, -0.03]; held
-out seed 1 4.66 -> 4.57, seed 2 3.57 -> 3.38, seed 4 2.96 -> 2.84, each paired interval below 0); 6 of those 27
-became holes, 21 are left. Truth's geometry (``perf/reference_error.py demo
---frames 30``): strict-fg 4.29 at 1.28 %, footprint-fg 3.67 at 1.45 %.
-Cost: :func:`footprint_occluders` 2.0 ms CPU per demo frame beside the plain warp's 2.2 ms; ``align`` of the
-demo 21.7 CPU-s against 21.9 with ``strict-fg`` (one run each, noise ~1 s).
-
-**What is left, and the trade (``"footprint-mixed-fg"``, opt-in; issue 12, session 10).** The 21 demo pixels
-still more than 0.3 m off (``footprint-fg``), traced to the HQ samples whose splats cover them against the HQ
-truth (``docs/worklog/2026-11-24-s10/refedge3.md``): 14 are covered by a time-of-flight mix on the far side of a
-silhouette whose value lies within the warp's continuity test of the near surface (3 % jump, 1 % slope), so it is
-warped as the near surface one HQ step too far; 5 by a full grid cell of true near samples (the LQ camera sees
-through a slit thinner than one HQ step, or at the tip of a closing gap between limbs that moves a pixel in the
-~0.5 ms between the two exposures); 2 by the triangle of a cell cut at the diagonal where the silhouette is
-concave. Held-out seeds 1 / 2 / 4 alike (27 / 17 / 11 mixes, 20 / 4 / 8 full cells, 5 / 2 / 1 triangles). No
-test on the HQ depth marks the last two kinds (all 21 pixels pass the visibility test: the reference's 3D point
-seen from the HQ camera lies on the HQ depth there). The mixes can be told from true samples only statistically:
-:func:`align.mixed_pixels.mixed_samples` flags 11 of the 14 (off their surface's line by more than 3 noise
-deviations), and with them a few percent of true edge samples. ``"footprint-mixed-fg"`` is ``"footprint-fg"``
-with those samples not warped (they still occlude); the pixels the plain warp had there are masked and counted,
-as ``"mixed"`` counts them. Through ``align`` (60 frames; masked as ``aligned.json`` counts it):
-
-==================  ============================  ============================  ============================
-session             footprint-fg                  footprint-mixed-fg            mixed-fg
-==================  ============================  ============================  ============================
-demo (seed 0)       3.10 [2.41, 3.92], 1.50 %     1.97 [1.66, 2.41], 4.33 %     1.86 [1.61, 2.23], 5.34 %
-seed 1 (held out)   4.57 [3.47, 5.77], 1.10 %     3.23 [2.22, 4.38], 3.69 %     3.22 [2.19, 4.38], 4.53 %
-seed 2 (held out)   3.38 [2.68, 4.14], 1.09 %     2.21 [1.69, 2.89], 3.72 %     2.21 [1.68, 2.91], 4.50 %
-seed 4 (held out)   2.84 [2.20, 3.64], 1.03 %     2.02 [1.61, 2.54], 3.42 %     2.06 [1.60, 2.65], 4.13 %
-==================  ============================  ============================  ============================
-
-Paired against ``"mixed-fg"`` the ratio is the same within noise on every session (demo +0.11 [-0.04, +0.36],
-seeds 1 / 2 / 4 +0.01 / +0.00 / -0.04, each interval across 0) at 0.7-1.0 points less of the ROI masked: the
-mixes' footprints need not be masked when the footprint occluders already hide what lies behind them. Neither
-meets issue 12's pair (ratio within 2 at no more than 2 % masked); the default stays ``"footprint-fg"``. Even an
-oracle that masked every triangle and full-cell pixel above 0.3 m (truth-chosen) would leave the demo at 2.42 and
-seed 1 at 3.42: the mixes within the noise must go too, and the HQ depth holds nothing that tells them apart.
-Cost: 8.0 ms CPU per demo frame against ``"footprint-fg"``'s 2.3 (:func:`align.mixed_pixels.mixed_samples` and a
-second warp). The demo's leaderboard (``bench run`` with raw, BF, JBF, RGF) on a ``"footprint-mixed-fg"`` dataset:
-HQ sensor RMSE / MAE 4.59 / 2.33 mm, and the reference ranks the methods as the truth does (same order by MSE and
-by RMSE, each of the 12 pair-metric differences with the same sign). All of this was measured on sessions
-simulated with the uniform time-of-flight mixes of :mod:`capture.sim.noise` (``flying_mix = "uniform"``); with
-the coverage law, the simulator's default since session 10, ``"footprint-fg"`` reads 2.63 [1.98, 3.34] at
-1.79 % masked on the demo (held-out seeds 1 / 2 / 4: 4.02 / 2.79 / 2.47; ``simtof.md``).
+Every measurement behind these choices, session by session, with its commands: ``docs/reference_edges.md``.
 """
 from __future__ import annotations
 

@@ -61,63 +61,12 @@ own depth change along their flow. The motion is written rotated into the LQ cam
 source crop (:class:`align.warp.CropMotion`), as the warp adds it. The scene-flow reference needs no plain
 warp of the pair's frame (:class:`align.motion.MotionReference`).
 
-Measured (``perf/reference_motion.py --frames 10``, clean people sessions 7 ms out of phase, scale 1, strict
-edges): MAE against truth (ROI, 10 pairs per session), chosen on seeds 1-3; seeds 4-6 held out in session 7,
-7-12 simulated in session 8 (10-12 only after everything was chosen); synchronous frames of the same seed
-in brackets. The scene flow masks nothing (net ROI reference pixels lost against the plain warp 0.1-1.3 %):
-
-==========================================  ====================  ================================
-scene flow                                  seeds 1 2 3           4 5 6 / 7 8 9 / 10 11 12
-==========================================  ====================  ================================
-plain warp                                  22.3 16.3 27.6        27.1 31.7 20.5 / 32.2 14.6 19.0 /
-                                                                  16.4 15.5 32.6
-stride 1, max jump 0.15 m (session 6)       3.21 4.33 3.60        6.79 7.23 2.86
-stride 2 bilinear, max jump 0.08 m (s. 7)   3.12 4.18 3.55        6.35 6.61 2.84 / 3.19 3.02 5.27 /
-                                                                  4.50 3.05 4.27
-+ gain, same-surface fill, still, settle,   2.95 3.45 2.91        2.98 3.79 2.65 / 2.76 2.48 4.05 /
-finer flow where it fails (session 8)                             3.68 2.74 2.92
-quarter-size flow, finer flow without       2.84 3.46 2.99        3.28 3.58 2.76 / 2.76 2.57 3.93 /
-refinement, faster kernels (session 9)                            3.68 2.75 3.13
-gains 1.1 1.2 1.35 (session 10)             2.84 3.48 2.88        3.24 3.47 2.67 / 2.75 2.55 4.00 /
-                                                                  3.65 2.75 3.02
-synchronous frames                          (2.2 2.22 2.08)       (2.01 2.21 2.04 / 2.07 2.09 2.17 /
-                                                                  2.47 2.20 2.02)
-==========================================  ====================  ================================
-
-Every held-out seed lands within 2 mm of synchronous frames (session 8: gaps 0.4-1.9 mm, 95 % bootstrap
-intervals over pairs reaching above 2 mm on seeds 5, 9 and 10; session 9: 0.5-1.75 mm, above 2 mm on seeds 4,
-5, 9, 10 and 12); over seeds 4-12 the MAE falls from 4.29 to 3.08 mm
-against session 7's, by 1.22 mm [0.64, 1.92]. Session 9 made it cheaper at the same error (seeds 4-12 pooled:
-+0.05 mm [-0.02, +0.13] against session 8's): the flow on the quarter-size grey image at DIS's finest level 1
-(the same 1/8 of the colour image as ultrafast's own level 2 on the half-size one; the image pyramid and the
-settling cost a quarter, and the finer flow is needed on 1 of 30 consecutive pairs of seed 1 instead of 4),
-the finer flow without its variational refinement and decided before step 3, and the compiled passes
-rewritten (steps 1-3 and the fill: 3.7 -> 2.4 ms per pair). CPU throughput 0.46 of the plain warp (session 8:
-0.34): still under the 0.5 issue 12 asks. Per pair (ms CPU, 30 consecutive pairs of seed 1): the moved warp
-8.7 (the plain warp's cost), the expansion 2.8, DIS 2.2 (+0.45 for the finer flow's share), the fill 1.0,
-steps 1-2 1.0, the gain vote 0.7, step 3 0.7, the grey images 0.6, settling 0.4. Session 9 also tried: the
-finer flow on the rectangle of the moving samples that missed their surface only (a quarter of the image, but
-seed 5's HQ frame 8 went from 8 to 20 mm), the expansion with a packed per-sample layout or a per-block still
-test (no faster). Tried and dropped before: optical flow on the rectangle of the colour images that changed only (DIS on
-the smaller image: +0.3 mm MAE on seeds 2 and 3; for the finer flow, no faster where people and
-balloons spread over 75-80 % of the image); still tiles skipping the flow (the inside of a uniform
-moving surface does not change); a finer DIS for every pair (finest scale 1 / patch stride 6: no lower
-MAE, 2x the cost; patch stride 8: +0.9-1.9 mm); DIS fast as the finer flow (no better than ultrafast);
-flow stride 3 (+0.26 mm on seed 3, throughput 0.47); gains up to 2.5 (never chosen).
-
-Session 10 (another machine, where session 9's code reads 0.52-0.56 of the plain warp's CPU throughput, not 0.46):
-three gains instead of six, 1.1, 1.2 and 1.35 (six: 1.0-1.7; the vote's work halves; seeds 1-3, 5, 9: -0.004 mm
-[-0.06, +0.06]; held-out seeds 4, 6-8, 10-18, 16-18 simulated for it: -0.04 mm [-0.07, -0.02], no seed worse by
-more than 0.01 mm, every one within 1.5 mm of its synchronous frames), and bit-identical savings: the rig's rays
-and their rotation set up in 1.5 instead of 13 ms (once per :class:`SceneFlow`), the expansion's output filled once
-(0.3 ms). CPU throughput 0.56-0.58 of the plain warp against 0.52-0.56 for session 9's code, run for run (flow
-+6 % pairs per second; seed 1). On seed 5, where the finer flow runs on 4 of 30 consecutive pairs (5.8 ms
-each), 0.53-0.54 against 0.51-0.52. Tried and dropped (seeds 1-3, 5, 9, paired against the same pairs): fill radius 8 px
-(+0.08 mm [-0.00, +0.18]) or 12 px (+0.03 [-0.02, +0.08], seed 9 1.93 mm from synchronous), the expansion
-without its landing lookup (+0.22 [+0.19, +0.25]) or from its own block only (+0.85 [+0.55, +1.19]); the
-expansion branch-free over a packed per-sample table, the fill branch-free or packed (as fast or slower, same
-results); DIS on the eighth-size image at its finest level (0.1 ms less); the finer flow with its patches 4 px apart
-(3.5 instead of 5.8 ms where it runs; all 18 seeds +0.05 mm [+0.01, +0.11], seeds 5 and 16 +0.37 and +0.35).
+Where it stands (``perf/reference_motion.py SESSION --frames 10``; clean people sessions 7 ms out of phase,
+scale 1, strict edges, MAE against the truth over the ROI): seeds 1-18 land 2.5-4.0 mm, each within 2 mm of the
+same seed's synchronous frames (2.0-2.5 mm; the plain warp 15-33 mm), masking nothing. CPU throughput
+(``--frames 2 --speed-frames 30``) 0.56-0.58 of the plain warp on session 10's machine (0.46 on session 9's,
+where the flow work cost twice as much). Every setting was chosen on a few seeds and checked on held-out ones;
+the measurements, the settings tried and dropped, and the per-pair costs: ``docs/motion_flow.md``.
 """
 from __future__ import annotations
 

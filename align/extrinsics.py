@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+from align.clustered import sandwich, two_way_parts
 from align.errors import FeatureError
 from capture.camera import Intrinsics, Transform
 
@@ -221,15 +222,6 @@ def _raw_jacobian(P: np.ndarray, T: Transform, K: Intrinsics, h: float = 1e-7) -
     return J
 
 
-def _sandwich(s: np.ndarray, A_inv: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """``A^-1 B A^-1`` with ``B`` the outer products of the scores ``s`` summed within each cluster, times ``G/(G-1)``."""
-    _, g = np.unique(labels, return_inverse=True)
-    G = int(g.max()) + 1
-    S = np.zeros((G, s.shape[1]))
-    np.add.at(S, g.reshape(-1), s)
-    return A_inv @ (S.T @ S * (G / max(G - 1, 1))) @ A_inv
-
-
 def cluster_covariance(points: np.ndarray, pixels: np.ndarray, K: Intrinsics, T: Transform, clusters: np.ndarray, *,
                        loss: str = "soft_l1", scale_px: float = 1.0) -> np.ndarray:
     """Cluster-robust (sandwich) covariance of the pose that minimises eq. 31 over ``points``/``pixels``.
@@ -241,7 +233,7 @@ def cluster_covariance(points: np.ndarray, pixels: np.ndarray, K: Intrinsics, T:
     residual (``linear``: ``rho(z) = z``; ``soft_l1``: ``2 (sqrt(1 + z) - 1)``), and its covariance the sandwich
     ``A^-1 B A^-1``: ``A = J^T diag(rho'(z) + 2 z rho''(z)) J`` (the loss's Hessian; ``(1 + z)^-3/2`` for
     ``soft_l1``), ``B = sum over clusters of s_c s_c^T`` with the clusters' summed scores ``s_c = (J^T rho'(z) r)_c``
-    (times ``G / (G - 1)``): errors may be correlated in any way within a cluster, independent between clusters.
+    (times ``G / (G - 1)``; :mod:`align.clustered`): errors may be correlated in any way within a cluster, independent between clusters.
     ``clusters`` ``(N,)`` labels (one way) or ``(N, 2)`` (two ways: ``V_a + V_b - V_ab`` over the intersections,
     Cameron, Gelbach and Miller 2011; where that is not positive definite, e.g. with fewer probes than pose
     parameters, the conservative ``V_a + V_b``). With one cluster per pair and the linear
@@ -263,11 +255,10 @@ def cluster_covariance(points: np.ndarray, pixels: np.ndarray, K: Intrinsics, T:
     s = J * (w_score * r)[:, None]
     lab = np.repeat(np.asarray(clusters).reshape(P.shape[0], -1), 2, axis=0)   # both rows of a pair
     if lab.shape[1] == 1:
-        candidates = [_sandwich(s, A_inv, lab[:, 0])]
+        candidates = [sandwich(A_inv, s, lab[:, 0])]
     else:
-        both = np.unique(lab[:, :2], axis=0, return_inverse=True)[1].reshape(-1)
-        Va, Vb = _sandwich(s, A_inv, lab[:, 0]), _sandwich(s, A_inv, lab[:, 1])
-        candidates = [Va + Vb - _sandwich(s, A_inv, both), Va + Vb]
+        Va, Vb, Vab = two_way_parts(A_inv, s, lab[:, 0], lab[:, 1])
+        candidates = [Va + Vb - Vab, Va + Vb]
     for V in candidates:
         V = 0.5 * (V + V.T)
         if np.linalg.eigvalsh(V).min() > 0:

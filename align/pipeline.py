@@ -44,6 +44,7 @@ import numpy as np
 from tqdm import tqdm
 
 from align.association import associate, nearest_mapping, overlap_us
+from align.clustered import grid_cells
 from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
 from align.extrinsics import MIN_POINTS, ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
@@ -538,9 +539,8 @@ def fit_clusters(setup: PairSetup, loss: ShiftLoss) -> np.ndarray:
     10, ``tidy`` notes."""
     K = setup.K_hq
     uv = K.project(loss.points)
-    cx = np.clip((uv[:, 0] * FIT_CELLS) // K.width, 0, FIT_CELLS - 1)
-    cy = np.clip((uv[:, 1] * FIT_CELLS) // K.height, 0, FIT_CELLS - 1)
-    return np.stack([loss.probe_id, np.nan_to_num(cy * FIT_CELLS + cx, nan=-1).astype(np.int64)], axis=1)
+    return np.stack([loss.probe_id, grid_cells(uv[:, 0], uv[:, 1], width=K.width, height=K.height, cells=FIT_CELLS)],
+                    axis=1)
 
 
 def _refit_on_refined_keypoints(setup: PairSetup, probes: list[Probe], fit: ExtrinsicFit, first: ShiftLoss, shift, *,

@@ -33,6 +33,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from align.clustered import grid_cells, two_way_parts
+from align.clustered import sandwich as clustered_sandwich
 from align.loop.effects import feature_effects
 from align.loop.effects.depth import DepthData, depth_effects
 from align.loop.features import FeatureData, FeatureModel, interpolate_tracks
@@ -278,36 +280,33 @@ CELLS = 8
 
 def sandwich_two_way(J: np.ndarray, r: np.ndarray, group_a: np.ndarray, group_b: np.ndarray, c: float) -> np.ndarray:
     """Two-way cluster-robust covariance of an IRLS fit: ``V_a + V_b - V_ab`` (Cameron, Gelbach and
-    Miller 2011), rows correlated within a cluster of ``group_a`` or of ``group_b`` (``(n,)`` integer
-    labels, any order), ``V_ab`` over their intersections. The feature phase's rows share errors
+    Miller 2011; :func:`align.clustered.two_way_parts`), rows correlated within a cluster of ``group_a``
+    or of ``group_b`` (``(n,)`` integer labels, any order). The feature phase's rows share errors
     within a probe (one frame's pose, motion, tracking) and within a region of the HQ image: a static
     scene shows the same points to every probe, and their keypoint-location errors repeat in each
     (on rendered people sessions the k1 deviation by probe alone came out 2.5-3x too small)."""
-    ab = np.unique(np.stack([group_a, group_b], axis=1), axis=0, return_inverse=True)[1].reshape(-1)
-    V = [_cluster_cov(J, r, g, c) for g in (group_a, group_b, ab)]
-    return V[0] + V[1] - V[2]
-
-
-def _cluster_cov(J: np.ndarray, r: np.ndarray, group: np.ndarray, c: float) -> np.ndarray:
-    order = np.argsort(group, kind="stable")
-    g = np.unique(group[order], return_inverse=True)[1]
-    return sandwich(J[order], r[order], g, c)
+    A_inv, s = _irls_parts(J, r, c)
+    if A_inv is None:
+        return np.full((J.shape[1],) * 2, np.nan)
+    Va, Vb, Vab = two_way_parts(A_inv, s, group_a, group_b)
+    return Va + Vb - Vab
 
 
 def sandwich(J: np.ndarray, r: np.ndarray, group: np.ndarray, c: float) -> np.ndarray:
-    """Cluster-robust covariance ``A^-1 B A^-1`` of an IRLS fit (clusters = ``group``, ``0..G-1`` sorted)."""
+    """Cluster-robust covariance ``A^-1 B A^-1`` of an IRLS fit (clusters = ``group``, integer labels;
+    :func:`align.clustered.sandwich`)."""
+    A_inv, s = _irls_parts(J, r, c)
+    return np.full((J.shape[1],) * 2, np.nan) if A_inv is None else clustered_sandwich(A_inv, s, group)
+
+
+def _irls_parts(J: np.ndarray, r: np.ndarray, c: float) -> tuple[np.ndarray | None, np.ndarray]:
+    """``(A^-1, scores)`` of an IRLS fit with the Cauchy weights of scale ``c``; ``A^-1`` None where singular."""
     w = weights(r, c)
-    A = (J * w[:, None]).T @ J
-    s = J * (w * r)[:, None]
-    starts = np.searchsorted(group, np.unique(group))
-    S = np.add.reduceat(s, starts, axis=0)
-    G = S.shape[0]
-    B = S.T @ S * (G / max(G - 1, 1))
     try:
-        Ai = np.linalg.inv(A)
+        A_inv = np.linalg.inv((J * w[:, None]).T @ J)
     except np.linalg.LinAlgError:
-        return np.full(A.shape, np.nan)
-    return Ai @ B @ Ai
+        A_inv = None
+    return A_inv, J * (w * r)[:, None]
 
 
 def _heldout_summary(h: HeldOut, cols: np.ndarray) -> tuple[dict, np.ndarray]:
@@ -501,9 +500,7 @@ def _add_model_error(f: Finding, m: dict) -> None:
 def _hq_cells(data: FeatureData) -> np.ndarray:
     """``(F,)`` the cell of the HQ colour image (``CELLS x CELLS``) each feature lies in."""
     K = data.K_hq
-    cx = np.clip((data.hq_xy[:, 0] + 0.5) * CELLS // K.width, 0, CELLS - 1)
-    cy = np.clip((data.hq_xy[:, 1] + 0.5) * CELLS // K.height, 0, CELLS - 1)
-    return np.nan_to_num(cy * CELLS + cx, nan=-1).astype(np.int64)
+    return grid_cells(data.hq_xy[:, 0] + 0.5, data.hq_xy[:, 1] + 0.5, width=K.width, height=K.height, cells=CELLS)
 
 
 # ----------------------------------------------------------------------------------- depth phase

@@ -168,6 +168,37 @@ def _near_side_mixes(d, rng, *, width):
     return np.where(band, w * near + (1 - w) * far, d).astype(np.float32)
 
 
+def _slab_scenes(seed0):
+    """Three analytic scenes (a slab 0.7 m in front of two boards, all in front of the room), each with the rig:
+    yields ``(rng, HQ depth (truth), LQ truth, LQ background, rig)``, ``rng`` seeded ``seed0 + scene``."""
+    from tests.align.scene import Rect
+
+    rig = _rig(scale=0.5, distortion=False)
+    Kh, Kl, _, T_hq_world, T_lq_world = rig
+    for s, (px, py, pz) in enumerate(((0.0, 0.2, 2.2), (-0.4, 0.1, 1.8), (0.5, 0.3, 2.6))):
+        shapes = room(person_at=(px, py, pz))[:4] + [Rect((px + dx, py, pz + 0.7), (0.3, 0, 0), (0, 0.6, 0))
+                                                     for dx in (-0.3, 0.3)]
+        yield (np.random.default_rng(seed0 + s), cast(Kh, T_hq_world, shapes)[0],
+               cast(Kl, T_lq_world, shapes)[0].astype(np.float32), cast(Kl, T_lq_world, shapes[:3])[0].astype(np.float32),
+               rig)
+
+
+def _reference_and_counts(dh, name, *, rig, dl, bg, lq, acc):
+    """The rule ``name``'s reference of HQ depth ``dh``; adds (ROI pixels > 0.3 m off, masked ROI pixels, ROI
+    pixels) to ``acc[name]``."""
+    from align.pair_reference import PairReferences, ReferenceOptions
+    from align.roi import foreground_mask
+
+    Kh, Kl, T_lq_hq = rig[:3]
+    r = PairReferences(lambda i: dh, K_hq=Kh, K_lq=Kl, T_lq_hq=T_lq_hq, t_hq_us=np.array([0]), background=bg,
+                       options=ReferenceOptions(reference_edges=name, motion=False))(0, 0.0)
+    roi = foreground_mask(np.where(np.isfinite(r.depth), r.depth, lq), bg) & np.isfinite(dl)
+    e = (r.depth - dl)[roi & np.isfinite(r.depth)]
+    acc.setdefault(name, np.zeros(3))
+    acc[name] += (int((np.abs(e) > 0.3).sum()), int((r.edge_mask & roi).sum()), int(roi.sum()))
+    return r
+
+
 def test_footprint_rule_hides_what_the_dropped_near_samples_covered():
     """``footprint-fg`` against ``strict-fg`` on an analytic scene (a slab 0.7 m in front of two boards, all in
     front of the room) whose near surfaces lose their last 3 HQ samples to mixing: the boards' samples the HQ
@@ -177,29 +208,17 @@ def test_footprint_rule_hides_what_the_dropped_near_samples_covered():
     then strict-fg's band; it leaves under half the whole-jump errors in the ROI at under 2 % more masked."""
     from scipy.ndimage import minimum_filter
 
-    from align.pair_reference import PairReferences, ReferenceOptions
     from align.reference_edges import OCCLUDER_REL, footprint_occluders
-    from align.roi import foreground_mask, in_front
-    from tests.align.scene import Rect
+    from align.roi import in_front
 
-    Kh, Kl, T_lq_hq, T_hq_world, T_lq_world = _rig(scale=0.5, distortion=False)
     acc = {}
-    for s, (px, py, pz) in enumerate(((0.0, 0.2, 2.2), (-0.4, 0.1, 1.8), (0.5, 0.3, 2.6))):
-        shapes = room(person_at=(px, py, pz))[:4] + [Rect((px + dx, py, pz + 0.7), (0.3, 0, 0), (0, 0.6, 0))
-                                                     for dx in (-0.3, 0.3)]
-        rng = np.random.default_rng(s)
-        dh = _near_side_mixes(cast(Kh, T_hq_world, shapes)[0], rng, width=3)
+    for rng, dh, dl, bg, rig in _slab_scenes(0):
+        Kh, Kl, T_lq_hq = rig[:3]
+        dh = _near_side_mixes(dh, rng, width=3)
         dh = (dh * (1 + 0.001 * rng.standard_normal(dh.shape))).astype(np.float32)
-        dl = cast(Kl, T_lq_world, shapes)[0].astype(np.float32)
-        bg = cast(Kl, T_lq_world, shapes[:3])[0].astype(np.float32)
         lq = minimum_filter(np.where(np.isfinite(dl), dl, 99), 5).astype(np.float32)
         for name in ("strict-fg", "footprint-fg"):
-            r = PairReferences(lambda i: dh, K_hq=Kh, K_lq=Kl, T_lq_hq=T_lq_hq, t_hq_us=np.array([0]), background=bg,
-                               options=ReferenceOptions(reference_edges=name, motion=False))(0, 0.0)
-            roi = foreground_mask(np.where(np.isfinite(r.depth), r.depth, lq), bg) & np.isfinite(dl)
-            e = (r.depth - dl)[roi & np.isfinite(r.depth)]
-            a = acc.setdefault(name, np.zeros(3))
-            a += (int((np.abs(e) > 0.3).sum()), int((r.edge_mask & roi).sum()), int(roi.sum()))
+            r = _reference_and_counts(dh, name, rig=rig, dl=dl, bg=bg, lq=lq, acc=acc)
             if name == "footprint-fg":  # by formula: hidden behind the occluders, in front of the background
                 warper = DepthWarper(Kh, Kl, T_lq_hq, edge_reach=0.0)
                 plain, occ = warper(dh), footprint_occluders(warper, dh)
@@ -234,30 +253,16 @@ def test_footprint_mixed_rule_drops_the_mixes_that_extend_a_near_surface_and_cou
     the pixels the plain warp had there and those more than OCCLUDER_REL behind the occluders masked, then the band;
     its mask holds every pixel it dropped; and it leaves at most a quarter of footprint-fg's whole-jump errors."""
     from align.mixed_pixels import mixed_samples
-    from align.pair_reference import PairReferences, ReferenceOptions
     from align.reference_edges import OCCLUDER_REL, footprint_occluders
-    from align.roi import foreground_mask, in_front
-    from tests.align.scene import Rect
+    from align.roi import in_front
 
-    Kh, Kl, T_lq_hq, T_hq_world, T_lq_world = _rig(scale=0.5, distortion=False)
     acc = {}
-    for s, (px, py, pz) in enumerate(((0.0, 0.2, 2.2), (-0.4, 0.1, 1.8), (0.5, 0.3, 2.6))):
-        shapes = room(person_at=(px, py, pz))[:4] + [Rect((px + dx, py, pz + 0.7), (0.3, 0, 0), (0, 0.6, 0))
-                                                     for dx in (-0.3, 0.3)]
-        rng = np.random.default_rng(10 + s)
-        dh = cast(Kh, T_hq_world, shapes)[0]
+    for rng, dh, dl, bg, rig in _slab_scenes(10):
+        Kh, Kl, T_lq_hq = rig[:3]
         dh = (dh * (1 + 0.001 * rng.standard_normal(dh.shape))).astype(np.float32)
         dh, _ = _far_side_mixes_near(dh, rng, offset_rel=0.008)
-        dl = cast(Kl, T_lq_world, shapes)[0].astype(np.float32)
-        bg = cast(Kl, T_lq_world, shapes[:3])[0].astype(np.float32)
-        lq = dl.copy()
         for name in ("footprint-fg", "footprint-mixed-fg"):
-            r = PairReferences(lambda i: dh, K_hq=Kh, K_lq=Kl, T_lq_hq=T_lq_hq, t_hq_us=np.array([0]), background=bg,
-                               options=ReferenceOptions(reference_edges=name, motion=False))(0, 0.0)
-            roi = foreground_mask(np.where(np.isfinite(r.depth), r.depth, lq), bg) & np.isfinite(dl)
-            e = (r.depth - dl)[roi & np.isfinite(r.depth)]
-            a = acc.setdefault(name, np.zeros(3))
-            a += (int((np.abs(e) > 0.3).sum()), int((r.edge_mask & roi).sum()), int(roi.sum()))
+            r = _reference_and_counts(dh, name, rig=rig, dl=dl, bg=bg, lq=dl, acc=acc)
             if name == "footprint-mixed-fg":  # by formula
                 warper = DepthWarper(Kh, Kl, T_lq_hq, edge_reach=0.0)
                 plain, occ = warper(dh), footprint_occluders(warper, dh)

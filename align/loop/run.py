@@ -266,7 +266,7 @@ def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, 
     found = any(f.source == "found" for f in fl.findings) or dup_colour.size > 0
     refined_fit = ("not run: the model is the base fit's" if not found else "not run: no refined tracks" if refine
                    else "not run: switched off")
-    if found and refine and getattr(pf, "refined_probes", None) is not None:
+    if found and refine and pf.refined_probes is not None:
         t1 = time.perf_counter()
         fl, refined_fit = _refit_refined(setup, pf, fl, n_sift=len(fd), skip=dup_colour, options=o)
         secs["features.refined_refit"] = time.perf_counter() - t1

@@ -13,6 +13,12 @@ independent between clusters, ``B = G / (G - 1) sum_c S_c S_c^T`` over the clust
 :func:`two_way_parts`); that difference need not be positive definite, and each caller decides what to
 do where it is not.
 
+An error that every row shares (a session-wide offset of the time shift: ``align.time_shift.MODEL_ERROR_US``)
+is invisible to any clustering within the session. Given its size ``sd_j`` on parameter ``j``, it reaches the
+others as the fit would carry it: held ``delta`` off its estimate, parameter ``j`` moves the others, refitted, by
+``g_j delta`` with ``g_j = Sigma[:, j] / Sigma[j, j]`` (``Sigma = A^-1``: the regression of the others on it), so
+the covariance gains ``sum_j g_j g_j^T sd_j^2`` (:func:`shared_error`).
+
 Users: :func:`align.extrinsics.cluster_covariance` (the extrinsic fit, ``fit_extrinsics(clusters=...)``)
 and :mod:`align.loop.loop` (``sandwich``, ``sandwich_two_way``: the effect loop's IRLS fits). Both cut
 the HQ image into the same grid of cells (:func:`grid_cells`).
@@ -22,6 +28,8 @@ the HQ image into the same grid of cells (:func:`grid_cells`).
 16.0
 >>> float(cluster_meat(s, np.arange(4))[0, 0])            # every row its own cluster: 12 * 4/3
 16.0
+>>> shared_error(np.array([[4.0, 2.0], [2.0, 3.0]]), np.array([0.5, 0.0])).tolist()  # g = (1, 0.5)
+[[0.25, 0.125], [0.125, 0.0625]]
 >>> grid_cells(np.array([0.0, 639.0, np.nan]), np.array([0.0, 479.0, 10.0]), width=640, height=480, cells=8).tolist()
 [0, 63, -1]
 """
@@ -52,6 +60,16 @@ def two_way_parts(A_inv: np.ndarray, scores: np.ndarray, labels_a: np.ndarray,
     covariance is ``V_a + V_b - V_ab`` (module docstring)."""
     both = np.unique(np.stack([labels_a, labels_b], axis=1), axis=0, return_inverse=True)[1].reshape(-1)
     return tuple(sandwich(A_inv, scores, g) for g in (labels_a, labels_b, both))
+
+
+def shared_error(A_inv: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """``(k, k)``: the covariance that errors shared by every row add to a fit's parameters, ``sd`` ``(k,)`` each
+    parameter's shared error (0: none), carried into the others through ``A_inv`` (the fit's inverse Hessian):
+    ``sum_j g_j g_j^T sd_j^2``, ``g_j = A_inv[:, j] / A_inv[j, j]`` (module docstring)."""
+    sd = np.asarray(sd, np.float64)
+    j = np.flatnonzero(sd)
+    G = A_inv[:, j] / np.diag(A_inv)[j]
+    return (G * sd[j] ** 2) @ G.T
 
 
 def grid_cells(x: np.ndarray, y: np.ndarray, *, width: int, height: int, cells: int) -> np.ndarray:

@@ -87,15 +87,26 @@ class ExtrinsicFit:
 
     @property
     def rotation_std_deg(self) -> float:
-        return float(np.degrees(np.sqrt(max(np.trace(self.covariance[:3, :3]), 0.0))))
+        return pose_std(self.covariance)[1]
 
     @property
     def translation_std_m(self) -> float:
-        return float(np.sqrt(max(np.trace(self.covariance[3:, 3:]), 0.0)))
+        return pose_std(self.covariance)[0]
 
     def summary(self) -> dict:
         return {"pairs": self.n_pairs, "inliers": self.n_inliers, "rms_px": self.rms_px, "median_px": self.median_px,
                 "rotation_std_deg": self.rotation_std_deg, "translation_std_mm": 1e3 * self.translation_std_m}
+
+
+def pose_std(covariance: np.ndarray) -> tuple[float, float]:
+    """``(translation m, rotation deg)``: the root of the trace of a pose covariance's translation and rotation
+    blocks (``(6, 6)`` over rotation vector rad and translation m, or any larger one with those first).
+
+    >>> pose_std(np.diag([1e-4, 0, 0, 9e-6, 0, 16e-6]))
+    (0.005, 0.5729577951308232)
+    """
+    return (float(np.sqrt(max(np.trace(covariance[3:6, 3:6]), 0.0))),
+            float(np.degrees(np.sqrt(max(np.trace(covariance[:3, :3]), 0.0)))))
 
 
 def _pose_params(T: Transform) -> np.ndarray:

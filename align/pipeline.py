@@ -47,7 +47,7 @@ from align.association import associate, nearest_mapping, overlap_us
 from align.clustered import grid_cells
 from align.dataset import AlignedDatasetWriter
 from align.errors import AlignError, AssociationError, FeatureError, OptionError, UnobservableError
-from align.extrinsics import MIN_POINTS, ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics
+from align.extrinsics import MIN_POINTS, ExtrinsicFit, RigCalibration, compose_rig, fit_extrinsics, pose_std
 from align.features import FEATURES, Patches, detect, hq_patches, inverse_depth_gradient, lift, match, refine_offsets, track
 from align.motion import motion_summary
 from align.pair_reference import MOTION_MODELS, PairReferences, ReferenceOptions
@@ -853,6 +853,19 @@ def _lq_color(sess, setup: PairSetup, frame: int, lq_depth, registered: bool, T_
     return register_color(rgb, lq_depth, setup.K_lq, setup.K_lq_color, T_color_depth)
 
 
+def _T_lq_hq_std(pf: PairFit) -> dict:
+    """The deviation of the ``T_lq_hq`` that ``aligned.json`` reports: the rig's where the multi-view rig refinement
+    set it, the effect loop's where the loop replaced it (its final fit's covariance with the time shift's shared
+    error, ``align.loop.loop.FeatureLoop.covariance``), else the feature fit's."""
+    if pf.rig_std is not None:
+        t, r = pf.rig_std
+    elif pf.loop is not None and pf.loop.changed_geometry:
+        t, r = pose_std(pf.loop.features.covariance)
+    else:
+        t, r = pf.fit.translation_std_m, pf.fit.rotation_std_deg
+    return {"rotation_deg": r, "translation_mm": 1e3 * t}
+
+
 def _metadata(setup: PairSetup, pf: PairFit, table: PairTable, opts: AlignOptions, extra: dict | None) -> dict:
     sess = setup.session
     kept = table.kept
@@ -869,8 +882,7 @@ def _metadata(setup: PairSetup, pf: PairFit, table: PairTable, opts: AlignOption
         "time_shift_us": int(round(pf.shift.time_shift_us)),
         "time_model": pf.shift.to_dict(),
         "T_lq_hq": pf.T_lq_hq.to_list(),
-        "T_lq_hq_std": {"rotation_deg": pf.fit.rotation_std_deg, "translation_mm": 1e3 * pf.fit.translation_std_m}
-        if pf.rig_std is None else {"rotation_deg": pf.rig_std[1], "translation_mm": 1e3 * pf.rig_std[0]},
+        "T_lq_hq_std": _T_lq_hq_std(pf),
         "T_lq_hq_source": "charuco" if pf.board else "features" if pf.rig_std is None else "rig refinement",
         **({"charuco": pf.board} if pf.board else {}),
         "residuals": {

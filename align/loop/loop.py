@@ -23,7 +23,11 @@ offset as candidates (linear: no re-linearisation needed).
 Parameter uncertainty: a cluster-robust (sandwich) covariance, 95 % intervals at +-1.96 sigma. Depth
 phase: frame pairs as clusters. Feature phase: two-way, probes and regions of the HQ image
 (:func:`sandwich_two_way`: features of one probe share errors, and a static scene's points and their
-keypoint errors recur in every probe).
+keypoint errors recur in every probe). No clustering sees the time shift's error that every probe of a
+session shares (:data:`align.time_shift.MODEL_ERROR_US`, which the reported shift's deviation carries); it
+moves the pose too (people walk sideways: ``t_x`` 0.4-1.7 mm per ms of shift on simulated people sessions), so
+:attr:`FeatureLoop.covariance` adds it to every parameter through the fit's information
+(:func:`align.clustered.shared_error`; ``FeatureLoop.cov`` is the fit's own, which the findings' deviations use).
 """
 from __future__ import annotations
 
@@ -33,7 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from align.clustered import grid_cells, two_way_parts
+from align.clustered import grid_cells, shared_error, two_way_parts
 from align.clustered import sandwich as clustered_sandwich
 from align.loop.effects import feature_effects
 from align.loop.effects.depth import DepthData, depth_effects
@@ -41,6 +45,7 @@ from align.loop.features import FeatureData, FeatureModel, interpolate_tracks
 from align.loop.selection import (Comparison, HeldOut, LinearProblem, compare, folds_of, full_fit, null_threshold,
                                   rho, weights)
 from align.loop.stratify import Signature, depth_signatures, feature_signatures
+from align.time_shift import MODEL_ERROR_US
 from capture.camera import Transform
 
 
@@ -133,6 +138,12 @@ class FeatureLoop:
     heldout_before: dict
     heldout_after: dict
     seconds: dict
+    cov_shared: np.ndarray | None = None  # what the shift's shared error adds to ``cov`` (module docstring)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """The free parameters' covariance: ``cov`` (the fit's, cluster-robust) plus ``cov_shared``."""
+        return self.cov if self.cov_shared is None else self.cov + self.cov_shared
 
     @property
     def T(self) -> Transform:
@@ -278,6 +289,24 @@ def refit_check(model: FeatureModel, x_prev: np.ndarray, x_new: np.ndarray, *, n
 CELLS = 8
 
 
+def feature_covariances(J: np.ndarray, r: np.ndarray, data: FeatureData, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(cov, shared)`` of the feature phase's final fit (``J`` over its free columns, pose and shift first;
+    residuals ``r``, Cauchy scale ``c``): the two-way cluster-robust covariance (:func:`sandwich_two_way`, probes
+    x cells of the HQ image) and what the time shift's shared error :data:`~align.time_shift.MODEL_ERROR_US` adds
+    to it (:func:`align.clustered.shared_error`; NaN where the fit's information is singular)."""
+    A_inv, s = _irls_parts(J, r, c)
+    if A_inv is None:
+        return (np.full((J.shape[1],) * 2, np.nan),) * 2
+    sd = np.zeros(J.shape[1])
+    sd[6] = MODEL_ERROR_US / 1000.0  # the shift's column, in ms
+    return _two_way(A_inv, s, np.repeat(data.probe, 2), np.repeat(_hq_cells(data), 2)), shared_error(A_inv, sd)
+
+
+def _two_way(A_inv: np.ndarray, s: np.ndarray, group_a: np.ndarray, group_b: np.ndarray) -> np.ndarray:
+    Va, Vb, Vab = two_way_parts(A_inv, s, group_a, group_b)
+    return Va + Vb - Vab
+
+
 def sandwich_two_way(J: np.ndarray, r: np.ndarray, group_a: np.ndarray, group_b: np.ndarray, c: float) -> np.ndarray:
     """Two-way cluster-robust covariance of an IRLS fit: ``V_a + V_b - V_ab`` (Cameron, Gelbach and
     Miller 2011; :func:`align.clustered.two_way_parts`), rows correlated within a cluster of ``group_a``
@@ -286,10 +315,7 @@ def sandwich_two_way(J: np.ndarray, r: np.ndarray, group_a: np.ndarray, group_b:
     scene shows the same points to every probe, and their keypoint-location errors repeat in each
     (on rendered people sessions the k1 deviation by probe alone came out 2.5-3x too small)."""
     A_inv, s = _irls_parts(J, r, c)
-    if A_inv is None:
-        return np.full((J.shape[1],) * 2, np.nan)
-    Va, Vb, Vab = two_way_parts(A_inv, s, group_a, group_b)
-    return Va + Vb - Vab
+    return np.full((J.shape[1],) * 2, np.nan) if A_inv is None else _two_way(A_inv, s, group_a, group_b)
 
 
 def sandwich(J: np.ndarray, r: np.ndarray, group: np.ndarray, c: float) -> np.ndarray:
@@ -404,13 +430,13 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
         findings.append(Finding(best, "features", {}, {}, dict(zip(e.params, e.units)), "found", e.what,
                                 e.signature, comps[best], stage, extra={"look_alikes": alike} if alike else {}))
     t0 = time.perf_counter()
-    cov, after_summary, before, after = _finalise(model, lib, fixed, findings, x, x_base, accepted, c=c, folds=folds,
-                                                  model_errors=o.model_errors)
-    secs["final"] = time.perf_counter() - t0
-    secs["total"] = time.perf_counter() - t_start
+    covs, after_summary, before, after = _finalise(model, lib, fixed, findings, x, x_base, accepted, c=c, folds=folds,
+                                                   model_errors=o.model_errors)
+    secs.update(final=time.perf_counter() - t0, total=time.perf_counter() - t_start)
     names = model.names()
-    return FeatureLoop(model, x, x_base, [names[i] for i in _cols(model, accepted)], cov, findings, stages,
-                       float(threshold or o.z_floor), null_z, c, before, after, before_summary or {}, after_summary, secs)
+    return FeatureLoop(model, x, x_base, [names[i] for i in _cols(model, accepted)], covs[0], findings, stages,
+                       float(threshold or o.z_floor), null_z, c, before, after, before_summary or {}, after_summary, secs,
+                       covs[1])
 
 
 def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_base, accepted, *, c: float, folds,
@@ -422,7 +448,7 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
     group = np.repeat(data.probe, 2)
     free = _cols(model, accepted)
     r0, Jf = model.residuals(x), model.jacobian(x, columns=free)
-    cov = sandwich_two_way(Jf, r0, group, np.repeat(_hq_cells(data), 2), c)
+    cov, shared = feature_covariances(Jf, r0, data, c)
     _set_params(model, lib, findings, x, cov, free, model_errors=model_errors)
     for e in fixed:
         sl = model.layout[e.name]
@@ -434,7 +460,7 @@ def _finalise(model: FeatureModel, lib, fixed, findings: list[Finding], x, x_bas
     s_a, st_a = _instants(model, x)
     before = feature_signatures(data, model.residuals(x_base), shift_us=s_b, stamps=st_b)
     after = feature_signatures(data, r0, shift_us=s_a, stamps=st_a)
-    return cov, after_summary, before, after
+    return (cov, shared), after_summary, before, after
 
 
 def _set_params(model: FeatureModel, lib, findings: list[Finding], x: np.ndarray, cov: np.ndarray, free: np.ndarray,
@@ -482,11 +508,10 @@ def refit_on_tracks(fl: FeatureLoop, data: FeatureData, *, max_nfev: int = 30, m
     lost = float(np.mean(r_new[r != 0] == 0))
     if np.any(at) or lost > max_lost:
         return None, f"refit at a bound ({np.any(at)}) or {100 * lost:.1f} % of rows left their window"
-    cov = sandwich_two_way(model.jacobian(x, columns=free), r_new, np.repeat(data.probe, 2),
-                           np.repeat(_hq_cells(data), 2), c)
+    cov, shared = feature_covariances(model.jacobian(x, columns=free), r_new, data, c)
     findings = [replace(f, params=dict(f.params), std=dict(f.std), extra=dict(f.extra)) for f in fl.findings]
     _set_params(model, model.effects, findings, x, cov, free, model_errors=model_errors)
-    return replace(fl, model=model, x=x, cov=cov, findings=findings), ""
+    return replace(fl, model=model, x=x, cov=cov, findings=findings, cov_shared=shared), ""
 
 
 def _add_model_error(f: Finding, m: dict) -> None:
@@ -601,4 +626,4 @@ def fit_depth_effects(data: DepthData, *, declared: dict | None = None, options:
 
 
 __all__ = ["DepthLoop", "FeatureLoop", "Finding", "LoopOptions", "StageRecord", "fit_depth_effects",
-           "fit_feature_effects", "interpolate_tracks", "refit", "refit_on_tracks", "sandwich", "sandwich_two_way"]
+           "feature_covariances", "fit_feature_effects", "interpolate_tracks", "refit", "refit_on_tracks", "sandwich", "sandwich_two_way"]

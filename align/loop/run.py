@@ -35,7 +35,6 @@ from align.loop.features import pack_probes
 from align.loop.loop import (DepthLoop, FeatureLoop, Finding, LoopOptions, fit_depth_effects, fit_feature_effects,
                              refit_on_tracks)
 from align.loop.stratify import Signature
-from align.time_shift import MODEL_ERROR_US
 from align.warp import DepthWarper
 from capture.camera import Intrinsics, Transform
 
@@ -111,9 +110,9 @@ class LoopResult:
             return
         pf.shift.time_shift_us = self.shift_us
         pf.shift.drift_ppm = self.drift_ppm
-        sd = float(np.sqrt(max(self.features.cov[6, 6], 0.0))) * 1000.0  # cluster-robust, the extended model
-        if np.isfinite(sd) and sd > 0:
-            pf.shift.std_us = float(np.hypot(sd, MODEL_ERROR_US))  # and the error all probes share
+        fl = self.features
+        if np.isfinite(fl.cov[6, 6]) and fl.cov[6, 6] > 0:  # cluster-robust, plus the error all probes share
+            pf.shift.std_us = float(np.sqrt(fl.covariance[6, 6])) * 1000.0
         if any(f.name == "clock_drift" and f.source == "found" for f in self.findings):
             pf.shift.model = "linear (loop)"
         pf.T_lq_hq = self.T_lq_hq

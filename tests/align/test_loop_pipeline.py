@@ -46,6 +46,25 @@ def test_two_undeclared_effects_named_and_measured(lens_dups):
     assert "duplicates its predecessor" in pairs
 
 
+def test_reported_pose_deviation_is_the_loops_where_the_loop_replaced_the_pose(lens_dups):
+    """``T_lq_hq_std`` belongs to the ``T_lq_hq`` written: the loop's final fit's covariance (with the time shift's
+    shared error), not the base fit's, which fitted the pose without the lens (about 10 mm here); it covers the
+    truth. The shift's deviation: the loop's fit and the shared error in quadrature."""
+    from align.extrinsics import pose_std
+    from align.time_shift import MODEL_ERROR_US
+
+    root, _, res, meta = lens_dups
+    fl = res.views["lq"].loop.features
+    t_sd, r_sd = pose_std(fl.covariance)
+    assert meta["T_lq_hq_std"]["translation_mm"] == pytest.approx(1e3 * t_sd)
+    assert meta["T_lq_hq_std"]["rotation_deg"] == pytest.approx(r_sd)
+    assert t_sd > pose_std(fl.cov)[0]  # the shared shift error is in
+    assert t_sd < 0.5 * res.fit.translation_std_m
+    dt, _ = res.T_lq_hq.error_to(Transform.from_list(read_truth(root).info["T_lq_hq"]))
+    assert dt < 3 * t_sd, (dt, t_sd)
+    assert res.shift.std_us == pytest.approx(np.hypot(1e3 * np.sqrt(fl.cov[6, 6]), MODEL_ERROR_US))
+
+
 def test_report_shows_the_loop(lens_dups):
     _, out, _, meta = lens_dups
     md = (out / "report.md").read_text()

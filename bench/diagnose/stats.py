@@ -13,7 +13,9 @@ Every statistic takes a measured depth image ``depth`` and a reference ``referen
 * :func:`position_bias`: the mean residual on a coarse grid of the image;
 * :func:`autocorrelation`: the correlation of the residual with itself shifted by 1..L pixels;
 * :func:`edge_errors`: flying pixels (between the two sides of a depth jump) and edge
-  fattening (background pixels measured at the foreground depth) next to reference edges;
+  fattening (background pixels measured at the foreground depth) next to reference edges: the
+  discontinuities of :func:`jump_pixels`, where the depth changes by more than the surface's own slope
+  predicts (a floor seen at a grazing angle changes by more than the jump from row to row without an edge);
 * :func:`depth_steps`: the smallest step between distinct measured depths per depth bin (the
   quantisation of a stereo camera's disparity shows as steps growing as ``z**2``).
 """
@@ -281,9 +283,57 @@ class EdgeErrors:
                                                "missing_fraction", "fattening_px")}
 
 
+def jump_pixels(depth: np.ndarray, *, jump_m: float, gap_px: int = 3) -> np.ndarray:
+    """``(H, W)`` bool: the pixels of depth discontinuities of ``depth`` (metres, NaN = none).
+
+    Along x and along y, two valid pixels ``a`` and ``b`` up to ``gap_px`` apart (each pixel between them invalid
+    or between their depths) make a jump when ``b - a`` differs by more than ``max(jump_m, 0.7 |b - a|)`` from the
+    change the slope on each side predicts (the one-sided difference over two pixels just outside ``a`` and just
+    outside ``b``, over the same distance; where neither side has one, a slope of 0); ``a``, ``b`` and the pixels
+    between are marked. A plane at any angle, however steep its depth changes from pixel to pixel, has none
+    (simtof's definition, session 10, which tested the mean of the two slopes: that marked pixels up to three
+    beyond a step, whose one outer slope reached across it).
+
+    >>> z = np.tile(np.r_[1.0 + 0.1 * np.arange(8), 3.0 + 0.1 * np.arange(8)], (3, 1))  # a slope, a step, a slope
+    >>> jump_pixels(z, jump_m=0.1)[1].astype(int).tolist()
+    [0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 0, 0, 0, 0, 0]
+    >>> int(jump_pixels(np.tile(200.0 / np.arange(40.0, 60.0)[:, None], (1, 5)), jump_m=0.1).sum())  # grazing floor
+    0
+    """
+    z = np.asarray(depth, np.float64)
+    return _jumps_along_x(z, jump_m, gap_px) | _jumps_along_x(z.T, jump_m, gap_px).T
+
+
+def _jumps_along_x(z: np.ndarray, jump_m: float, gap_px: int) -> np.ndarray:
+    h, w = z.shape
+    p = np.pad(z, ((0, 0), (2, gap_px + 2)), constant_values=np.nan)  # p[:, j + 2] = z[:, j]
+    out = np.zeros((h, w), bool)
+    for g in range(1, gap_px + 1):
+        a, b = p[:, 2:2 + w], p[:, 2 + g:2 + g + w]
+        step = b - a
+        with np.errstate(invalid="ignore"):
+            thr = np.maximum(jump_m, 0.7 * np.abs(step))
+            off = [np.abs(step - g * sl) > thr for sl in ((a - p[:, 0:w]) / 2, (p[:, 4 + g:4 + g + w] - b) / 2)]
+        no_slope = np.isnan(p[:, 0:w] - a) & np.isnan(p[:, 4 + g:4 + g + w] - b)
+        unexplained = np.where(no_slope, np.abs(step) > thr, (off[0] | np.isnan(p[:, 0:w])) & (off[1] | np.isnan(
+            p[:, 4 + g:4 + g + w])))
+        between = np.ones((h, w), bool)
+        for k in range(1, g):
+            m = p[:, 2 + k:2 + k + w]
+            with np.errstate(invalid="ignore"):
+                between &= ~np.isfinite(m) | ((m - np.fmin(a, b)) * (np.fmax(a, b) - m) >= 0)
+        with np.errstate(invalid="ignore"):
+            hit = np.isfinite(a) & np.isfinite(b) & between & unexplained
+        for k in range(g + 1):
+            out[:, k:] |= hit[:, :w - k]
+    return out
+
+
 def edge_errors(depth: np.ndarray, reference: np.ndarray, *, jump_m: float = 0.1, band_px: int = 2,
                 tol_m: float | None = None) -> EdgeErrors:
-    """Errors within ``band_px`` pixels of reference depth jumps larger than ``jump_m``.
+    """Errors within ``band_px`` pixels of reference depth jumps larger than ``jump_m``: the reference pixels whose
+    3x3 neighbourhood spans more than ``jump_m`` and that lie on a discontinuity (:func:`jump_pixels`). Beside a
+    step on a grazing floor the 3x3 and band windows still see the floor's own slope.
 
     A measured pixel is *flying* when it lies between the near and far side of the jump (more
     than ``tol_m`` from both; default: 2 % of the depth), *fattened* when its reference is the
@@ -293,6 +343,7 @@ def edge_errors(depth: np.ndarray, reference: np.ndarray, *, jump_m: float = 0.1
     k = np.ones((3, 3), np.uint8)
     near, far = cv2.erode(ref, k), cv2.dilate(ref, k)
     edge = np.isfinite(reference) & (far - near > jump_m) & (far < 1e3)
+    edge &= jump_pixels(reference, jump_m=jump_m)
     if not edge.any():
         return EdgeErrors(0, float("nan"), float("nan"), float("nan"), float("nan"))
     kb = np.ones((2 * band_px + 1, 2 * band_px + 1), np.uint8)

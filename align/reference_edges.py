@@ -175,8 +175,8 @@ class EdgeRule:
         (counted, as the ``"mixed"`` rule counts them; a pixel the ROI would not score keeps the plain value);
         the occluders still come from every sample. Returns ``(depth, mask)``."""
         hq = np.asarray(hq, np.float32)
-        ref = warper(hq, motion=motion)
-        occ = footprint_occluders(warper, hq, motion=motion)
+        ref, fmap = warper.warp_with_map(hq, motion=motion)
+        occ = footprint_occluders(warper, hq, motion=motion, forward_map=fmap)
         scored = self.scored_only and background is not None
         dropped = None
         if self.mixed:
@@ -227,7 +227,7 @@ def _near_an_edge(d: np.ndarray, *, edge_rel: float) -> np.ndarray:
 
 
 def footprint_occluders(warper, hq: np.ndarray, *, reach: float = OCCLUDER_REACH, motion=None,
-                        edges_only: bool = True) -> np.ndarray:
+                        edges_only: bool = True, forward_map: tuple | None = None) -> np.ndarray:
     """The nearest depth ``(H, W)`` float32 metres (``inf``: none) any HQ sample of ``hq`` (``(h, w)`` float32
     metres, NaN = none) puts on each destination pixel through its footprint, ``reach`` footprints wide.
 
@@ -239,7 +239,8 @@ def footprint_occluders(warper, hq: np.ndarray, *, reach: float = OCCLUDER_REACH
     most ``MAX_OCCLUDER_PX``): a z-buffer of the samples at their nearest pixels, then a ``(2R+1)^2`` minimum.
     ``edges_only`` (the default): only the samples within one pixel of an HQ depth edge or hole (a 3x3
     neighbour missing or farther by more than the warper's ``edge_rel``) splat; inside a surface the warp's own
-    z-buffer already hides what lies behind it.
+    z-buffer already hides what lies behind it. ``forward_map``: ``warper.forward_map(hq, motion=motion)`` where the
+    caller has it already (:meth:`~align.warp.DepthWarper.warp_with_map`).
 
     Example:
         >>> from align.warp import DepthWarper
@@ -250,7 +251,7 @@ def footprint_occluders(warper, hq: np.ndarray, *, reach: float = OCCLUDER_REACH
         >>> float(occ[2, 3]), float(occ[3, 4]), float(occ[2, 5]), float(occ[0, 0])
         (1.0, 1.0, 2.0, 2.0)
     """
-    u, v, w, valid = warper.forward_map(hq, motion=motion)
+    u, v, w, valid = warper.forward_map(hq, motion=motion) if forward_map is None else forward_map
     d = np.asarray(hq, np.float32)
     with np.errstate(invalid="ignore"):
         ok = valid & np.isfinite(u) & np.isfinite(v) & (w > 0) & np.isfinite(d) & (d > 0)

@@ -152,11 +152,15 @@ class DepthWarper:
         r0, r1, c0, c1 = self.crop
         if motion is not None and not isinstance(motion, CropMotion):
             motion = self.crop_motion(motion)
-        u, v, w, valid = self._forward(np.ascontiguousarray(d[r0:r1, c0:c1]).ravel(), None,
-                                       None if motion is None else motion.dst)
+        return self._full_map(d.shape, self._forward(np.ascontiguousarray(d[r0:r1, c0:c1]).ravel(), None,
+                                                     None if motion is None else motion.dst))
+
+    def _full_map(self, shape: tuple, fwd: tuple) -> tuple:
+        """:meth:`_forward`'s flat crop ``(u, v, w, valid)`` laid out on the whole source image (:meth:`forward_map`)."""
+        r0, r1, c0, c1 = self.crop
         out = []
-        for arr, fill in ((u, np.nan), (v, np.nan), (w, 0.0), (valid, False)):
-            full = np.full(d.shape, fill, arr.dtype)
+        for arr, fill in zip(fwd, (np.nan, np.nan, 0.0, False)):
+            full = np.full(shape, fill, arr.dtype)
             full[r0:r1, c0:c1] = arr.reshape(r1 - r0, c1 - c0)
             out.append(full)
         return tuple(out)
@@ -208,7 +212,17 @@ class DepthWarper:
         return self.warp(depth, motion=motion)
 
     def warp(self, depth: np.ndarray, *, motion=None) -> np.ndarray:
-        """Warp one source depth image ``(H_src, W_src)`` float32 metres (NaN = none) to the destination.
+        """Warp one source depth image ``(H_src, W_src)`` float32 metres (NaN = none) to the destination
+        (:meth:`_warp`)."""
+        return self._warp(depth, motion=motion)[0]
+
+    def warp_with_map(self, depth: np.ndarray, *, motion=None) -> tuple[np.ndarray, tuple]:
+        """``(warp(depth, motion=motion), forward_map(depth, motion=motion))`` from one forward projection."""
+        return self._warp(depth, motion=motion, keep_map=True)
+
+    def _warp(self, depth: np.ndarray, *, motion=None, keep_map: bool = False) -> tuple[np.ndarray, tuple | None]:
+        """The warp of one source depth image ``(H_src, W_src)`` float32 metres (NaN = none) to the destination,
+        and with ``keep_map`` its :meth:`forward_map` (else None).
 
         Steps 1-2 here (flat arrays over the source crop: the x-neighbour of pixel ``k`` is
         ``k + 1``, row ends masked, the y-neighbour ``k + W``), steps 3-5 in the engine.
@@ -219,6 +233,7 @@ class DepthWarper:
         surface links stay those of the source grid. ``None``: no motion (the default).
         """
         d2 = self._check_shape(depth)
+        shape = d2.shape
         r0, r1, c0, c1 = self.crop
         d2 = np.ascontiguousarray(d2[r0:r1, c0:c1])
         ws = self._workspace()
@@ -228,6 +243,7 @@ class DepthWarper:
         if motion is not None and motion.dz.shape != d.shape:
             raise WarpInputError(f"motion covers {motion.dz.size} source points, the warp's crop {d.size}")
         u, v, w, valid = self._forward(d, ws, None if motion is None else motion.dst)
+        fmap = self._full_map(shape, (u, v, w, valid)) if keep_map else None
         if motion is not None:
             d = d + motion.dz  # the moved points' source depth: the continuity test's input
         with np.errstate(invalid="ignore"):
@@ -236,8 +252,8 @@ class DepthWarper:
             _continuity(d, w, ws, W=d2.shape[1], edge_rel=self.edge_rel)
         pts = SourcePoints(u=u, v=v, w=w, valid=valid, cxp=ws["cxp"], cyp=ws["cyp"], W=d2.shape[1])
         if self.engine == "numba":
-            return splat_numba(pts, self.grid, ws["zkey"])
-        return splat_numpy(pts, self.grid, ws)
+            return splat_numba(pts, self.grid, ws["zkey"]), fmap
+        return splat_numpy(pts, self.grid, ws), fmap
 
     def crop_motion(self, motion: np.ndarray) -> "CropMotion":
         """``motion`` ``(H_src, W_src, 3)`` (source camera frame, metres) laid out as :meth:`warp` uses it."""

@@ -246,3 +246,19 @@ def test_cut_splats_take_part_in_the_z_test_but_fill_nothing_alone():
     cut = np.array([key(1.0), key(1.0), key(1.0)], np.int64)
     merge_cut(buf, cut)
     assert buf.tolist() == [EMPTY_KEY, key(1.0), key(2.0)]
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_warp_with_map_is_the_warp_and_the_forward_map(engine):
+    """One forward projection for both (the ``footprint`` edge rules need both): bit for bit what ``warp`` and
+    ``forward_map`` give apart, with and without motion, with a lens."""
+    Kh, Kl, T_lq_hq, T_hq_world, _ = _rig(scale=0.25)
+    dh = cast(Kh, T_hq_world, room())[0].astype(np.float32)
+    dh[5:9, 10:30] = np.nan
+    W = DepthWarper(Kh, Kl, T_lq_hq, engine=engine)
+    motion = np.random.default_rng(0).normal(0, 0.02, dh.shape + (3,)).astype(np.float32)
+    for m in (None, motion):
+        out, fmap = W.warp_with_map(dh, motion=m)
+        assert np.array_equal(out, W.warp(dh, motion=m), equal_nan=True)
+        for a, b in zip(fmap, W.forward_map(dh, motion=m)):
+            assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)

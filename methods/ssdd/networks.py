@@ -163,11 +163,13 @@ class SSDDUNet(nn.Module):
 
 
 class SSDDLSTMUNet(nn.Module):
-    """Level 2 over sequences: ``forward(x_l1, x_lq, valid, rgb)`` with inputs ``(B, T, C, H, W)``.
+    """Level 2, one frame at a time: :meth:`step` processes one frame ``(B, C, H, W)`` with a carried state.
 
-    :meth:`step` processes one frame ``(B, C, H, W)`` with a carried state (streaming inference).
-    ``previous=True``: :meth:`step` also takes ``x_prev`` (required; :func:`methods.ssdd.model.level2_step`
-    makes it), and :meth:`forward` is not available (motion needs the flow: :func:`methods.ssdd.model.level2_depth`).
+    Sequences ``(B, T, ...)`` go through :func:`methods.ssdd.model.level2_depth` (training) and
+    :func:`methods.ssdd.model.level2_step` (streaming inference), which code the depth and carry the motion
+    around each step: the module has no ``forward`` of its own (its old one looped over the frames a second
+    way, without the coding, and nothing called it). ``previous=True``: :meth:`step` also takes ``x_prev``
+    (required; :func:`methods.ssdd.model.level2_step` makes it).
     """
 
     def __init__(self, cfg: NetConfig, *, previous: bool = False) -> None:
@@ -184,12 +186,3 @@ class SSDDLSTMUNet(nn.Module):
         x = _inputs(x_l1, [x_lq, x_prev] + self.cfg.optional(valid, rgb, z))
         res, state = self.unet.step(x, state)
         return x_l1 + res, state
-
-    def forward(self, x_l1, x_lq, valid=None, rgb=None, z=None) -> torch.Tensor:
-        state = None
-        outs = []
-        at = lambda v, t: None if v is None else v[:, t]  # noqa: E731
-        for t in range(x_l1.shape[1]):
-            y, state = self.step(x_l1[:, t], x_lq[:, t], at(valid, t), at(rgb, t), state, at(z, t))
-            outs.append(y)
-        return torch.stack(outs, dim=1)

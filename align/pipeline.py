@@ -80,7 +80,7 @@ class AlignOptions:
     this factor for detection (coordinates stay full resolution); default: so that the shorter side
     is about 240 px, at most halved (SIFT's cost falls with the square), and full resolution where that
     would shrink it by less than :data:`FULL_RES_ABOVE`. probes: HQ frames used for the fit (more where
-    they hold fewer than ``min_matches`` colour matches: :func:`build_probes`).
+    they hold fewer than ``min_matches`` colour matches: :func:`draw_probes`; and where they still fit no pose).
     association: nearest (eq. 28) | greedy (TUM). max_dt_ms: largest |t_LQ - (t_HQ + Delta)| of
     a kept pair (default half the LQ frame period). residual_k: a pair whose depth residual lies
     more than k MAD-sigmas above the median is dropped. time_model: constant | linear.
@@ -422,40 +422,66 @@ def _run_probes(builder: ProbeBuilder, frames: np.ndarray, opts: AlignOptions, d
         cv2.setNumThreads(threads)
 
 
-def build_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> tuple[list[Probe], int]:
+class ProbeDraw:
+    """A pair's probes, drawn from its candidate frames: ``opts.probes`` spread evenly at first, then, on each
+    :meth:`more`, as many again as are drawn, spread evenly over the candidates not used yet."""
+
+    def __init__(self, setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> None:
+        self.setup, self.opts, self.desc = setup, opts, desc
+        self.builder = ProbeBuilder(setup, opts)
+        self.candidates = self.builder.candidates()
+        if self.candidates.size == 0:
+            lo, hi = self.builder.range_us
+            raise AssociationError(
+                f"{setup.session.root}: {setup.hq}/{setup.hq_depth} ({setup.t_hq[0]}..{setup.t_hq[-1]} us) and "
+                f"{setup.lq}/{setup.lq_color} ({setup.t_lq_c[0]}..{setup.t_lq_c[-1]} us) do not overlap for any shift "
+                f"in [{lo / 1000:g}, {hi / 1000:g}] ms")
+        self.used = _spread(self.candidates.size, opts.probes)
+        self._probes = _run_probes(self.builder, self.candidates[self.used], opts, desc)
+
+    @property
+    def probes(self) -> list[Probe]:
+        """The probes drawn so far, in time order."""
+        return sorted(self._probes, key=lambda p: p.hq_index)
+
+    @property
+    def matches(self) -> int:
+        return sum(p.n_features for p in self._probes)
+
+    def more(self, why: str) -> bool:
+        """Draw the next round (logged with ``why``); False when every candidate is used."""
+        rest = np.setdiff1d(np.arange(self.candidates.size), self.used)
+        if rest.size == 0:
+            return False
+        more = rest[_spread(rest.size, self.used.size)]
+        log.info("%s: %s over %d probes: %d more probe frames", self.setup.name, why, self.used.size, more.size)
+        self._probes += _run_probes(self.builder, self.candidates[more], self.opts, self.desc)
+        self.used = np.union1d(self.used, more)
+        return True
+
+
+def draw_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> ProbeDraw:
     """``opts.probes`` probes spread evenly over the session, more where their matches fall short.
 
     A pair whose probes hold fewer than ``opts.min_matches`` colour matches (views of a multi-view rig
     that share little texture: the demo's four-view rig had a pair at 57 of 60 with 8 probes) gets more
-    probes from the rest of the session before it is refused: each round adds as many candidate frames
-    as it has probes, spread evenly over those not used yet, until the matches suffice or every candidate
-    is used. A pair with enough matches at first keeps exactly its first probes. Returns the probes in
-    time order and the number of candidate frames.
+    probes from the rest of the session before it is refused (:meth:`ProbeDraw.more`, until the matches
+    suffice or every candidate is used). A pair with enough matches at first keeps exactly its first probes.
     """
-    builder = ProbeBuilder(setup, opts)
-    cand = builder.candidates()
-    if cand.size == 0:
-        lo, hi = builder.range_us
-        raise AssociationError(
-            f"{setup.session.root}: {setup.hq}/{setup.hq_depth} ({setup.t_hq[0]}..{setup.t_hq[-1]} us) and "
-            f"{setup.lq}/{setup.lq_color} ({setup.t_lq_c[0]}..{setup.t_lq_c[-1]} us) do not overlap for any shift "
-            f"in [{lo / 1000:g}, {hi / 1000:g}] ms")
-    used = _spread(cand.size, opts.probes)
-    probes = _run_probes(builder, cand[used], opts, desc)
-    while sum(p.n_features for p in probes) < opts.min_matches and used.size < cand.size:
-        rest = np.setdiff1d(np.arange(cand.size), used)
-        more = rest[_spread(rest.size, used.size)]
-        log.info("%s: %d colour matches over %d probes (need %d): %d more probe frames", setup.name,
-                 sum(p.n_features for p in probes), used.size, opts.min_matches, more.size)
-        probes += _run_probes(builder, cand[more], opts, desc)
-        used = np.union1d(used, more)
-    probes.sort(key=lambda p: p.hq_index)
-    n_matches = sum(p.n_features for p in probes)
-    if n_matches < opts.min_matches:
-        raise FeatureError(f"{setup.session.root}: only {n_matches} colour feature matches between {setup.hq} and "
-                           f"{setup.lq} over {len(probes)} frames (need {opts.min_matches}): no common texture, "
+    draw = ProbeDraw(setup, opts, desc=desc)
+    while draw.matches < opts.min_matches and draw.more(f"{draw.matches} colour matches (need {opts.min_matches})"):
+        pass
+    if draw.matches < opts.min_matches:
+        raise FeatureError(f"{setup.session.root}: only {draw.matches} colour feature matches between {setup.hq} and "
+                           f"{setup.lq} over {len(draw.used)} frames (need {opts.min_matches}): no common texture, "
                            "no overlap of the views, or no depth under the HQ features")
-    return probes, int(cand.size)
+    return draw
+
+
+def build_probes(setup: PairSetup, opts: AlignOptions, *, desc: str = "features") -> tuple[list[Probe], int]:
+    """The probes of :func:`draw_probes` in time order, and the number of candidate frames."""
+    draw = draw_probes(setup, opts, desc=desc)
+    return draw.probes, int(draw.candidates.size)
 
 
 # --------------------------------------------------------------------------------------- the fit
@@ -482,8 +508,29 @@ class PairFit:
         return self.shift.shift_at(t_hq_us)
 
 
+def _time_shift(setup: PairSetup, opts: AlignOptions, probes: list[Probe], *, declared, drift, rng) -> ShiftEstimate:
+    """The time shift of ``probes`` (:func:`align.time_shift.estimate_time_shift`); where it is unobservable and
+    ``opts.on_unobservable`` flags, the declared shift (or 0) with a warning."""
+    try:
+        return estimate_time_shift(probes, setup.K_lq_color, range_us=rng, step_us=int(opts.shift_step_ms * 1000),
+                                   model=opts.time_model, drift_ppm=drift, declared_shift_us=declared,
+                                   t0_us=int(setup.t_hq[0]))
+    except UnobservableError as exc:
+        if opts.on_unobservable == "error":
+            raise
+        shift = exc.estimate
+        shift.time_shift_us = float(declared or 0.0)
+        log.warning("%s", exc)
+        return shift
+
+
 def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
-    """Time shift and extrinsics of one pair from colour features. Never reads ``truth/``."""
+    """Time shift and extrinsics of one pair from colour features. Never reads ``truth/``.
+
+    The probes are :func:`draw_probes`'; where their matches, enough in number, still fit no pose (the shift's
+    PnP on the static features or the joint fit stops with a :class:`FeatureError`: too few pairs whose tracks
+    reach the shifted instant, or none that agree), more are drawn (:meth:`ProbeDraw.more`) and the fit repeated,
+    until it fits or every candidate frame is used."""
     t_start = time.perf_counter()
     facts = setup.session.clock_facts
     declared = facts.get("time_shift_us")
@@ -494,24 +541,23 @@ def fit_pair(setup: PairSetup, opts: AlignOptions) -> PairFit:
         raise AssociationError(f"{setup.session.root}: {setup.hq} ({setup.t_hq[0]}..{setup.t_hq[-1]} us) and {setup.lq} "
                                f"({setup.t_lq[0]}..{setup.t_lq[-1]} us) do not overlap in time for any shift within "
                                f"+-{opts.shift_range_ms:g} ms")
-    probes, n_cand = build_probes(setup, opts)
-    try:
-        shift = estimate_time_shift(probes, setup.K_lq_color, range_us=rng, step_us=int(opts.shift_step_ms * 1000),
-                                    model=opts.time_model, drift_ppm=drift, declared_shift_us=declared,
-                                    t0_us=int(setup.t_hq[0]))
-    except UnobservableError as exc:
-        if opts.on_unobservable == "error":
-            raise
-        shift = exc.estimate
-        shift.time_shift_us = float(declared or 0.0)
-        log.warning("%s", exc)
-    # T_ex over all probes jointly: Delta is settled now (found with T_ex from static features
-    # only), so the moving features' interpolated positions add their information too
-    loss = ShiftLoss(probes, shift.T_init, setup.K_lq_color, t0_us=shift.t0_us)
-    pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
-    good = np.all(np.isfinite(pos), axis=1)
-    fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init,
-                         clusters=fit_clusters(setup, loss)[good])
+    draw = draw_probes(setup, opts)
+    while True:  # more probes where the matches, enough in number, still fit no pose (tracks broken at the shift)
+        probes = draw.probes
+        try:
+            shift = _time_shift(setup, opts, probes, declared=declared, drift=drift, rng=rng)
+            # T_ex over all probes jointly: Delta is settled now (found with T_ex from static features
+            # only), so the moving features' interpolated positions add their information too
+            loss = ShiftLoss(probes, shift.T_init, setup.K_lq_color, t0_us=shift.t0_us)
+            pos, _ = loss.lq_positions(shift.time_shift_us, shift.drift_ppm * 1e-6)
+            good = np.all(np.isfinite(pos), axis=1)
+            fit = fit_extrinsics(loss.points[good], pos[good], setup.K_lq_color, T_init=shift.T_init,
+                                 clusters=fit_clusters(setup, loss)[good])
+            break
+        except FeatureError as exc:
+            if not draw.more(f"{exc} at {draw.matches} colour matches"):
+                raise
+    n_cand = int(draw.candidates.size)
     refined = None
     if opts.refine_features:  # the keypoints' own localisation error, then T_ex again
         fit, loss, refined = _refit_on_refined_keypoints(setup, probes, fit, loss, shift, n_first=int(good.sum()))

@@ -1,5 +1,6 @@
 """A view pair whose probes fall short of the feature minimum gets more probes from the rest of the session
-instead of stopping the alignment (the demo's four-view rig had a pair at 57 of 60 matches with 8 probes)."""
+instead of stopping the alignment (the demo's four-view rig had a pair at 57 of 60 matches with 8 probes); so does
+a pair whose matches, enough in number, fit no pose."""
 from __future__ import annotations
 
 import json
@@ -42,3 +43,21 @@ def test_spread_picks_evenly_with_both_ends():
     assert _spread(10, 4).tolist() == [0, 3, 6, 9]
     assert _spread(3, 5).tolist() == [0, 1, 2]
     assert _spread(0, 5).size == 0
+
+
+def test_a_pair_whose_matches_fit_no_pose_takes_more_probes(tmp_path, caplog):
+    # synchronous people session, 2 probes of at most 60 SIFT features: 14 colour matches pass a minimum of 12, but
+    # the static ones give PnP no consistent pose; before, fit_pair stopped there ("PnP found no consistent pose")
+    from align.pipeline import fit_pair
+
+    root = simulate_session(tmp_path / "s", time_shift_us=0, seed=11, seconds=2.0)
+    setup = pair_setup(open_session(root), lq="lq", hq="hq")
+    opts = AlignOptions(probes=2, max_features=60, min_matches=12, loop=False, progress=False, workers=1,
+                        on_unobservable="flag")
+    cand = ProbeBuilder(setup, opts).candidates()
+    with caplog.at_level("INFO", logger="align.pipeline"):
+        pf = fit_pair(setup, opts)
+    assert "no consistent pose" in caplog.text and "more probe frames" in caplog.text
+    hq = [p.hq_index for p in pf.probes]
+    assert len(hq) > 2 and hq == sorted(hq) and {cand[0], cand[-1]} <= set(hq)
+    assert pf.fit.n_inliers >= 12

@@ -70,7 +70,9 @@ def _space_group(p: argparse.ArgumentParser) -> None:
                         "mixed but only where the reference is in front of the background, i.e. in the ROI; footprint-fg also masks "
                         "what lies behind the footprint of any HQ sample at an edge, the ones the warp drops included; "
                         "footprint-mixed-fg also leaves out the mixed samples mixed distrusts and masks what they covered "
-                        "(lower RMSE, about 3 points more of the ROI masked) (default: %(default)s)")
+                        "(lower RMSE, about 3 points more of the ROI masked); footprint-colour-fg also masks reference "
+                        "pixels at a silhouette whose LQ colour (co-registered only) looks like the other side "
+                        "(default: %(default)s)")
 
 
 def _model_groups(p: argparse.ArgumentParser) -> None:

@@ -824,6 +824,7 @@ def write_pair_dataset(root: Path, setup: PairSetup, pf: PairFit, opts: AlignOpt
             ref, pm, edge_mask = r.depth, r.motion, r.edge_mask
             lq = _lq_depth(sess, setup, pf, j)
             color = _lq_color(sess, setup, fl, lq, color_registered, lq_color_T)
+            ref, edge_mask = _colour_masked(rule, ref, edge_mask, color if color_registered else None, background)
             roi = foreground_mask(np.where(np.isfinite(ref), ref, lq), background) if background is not None else None
             if roi is not None:
                 masked += (int((edge_mask & roi).sum()), int(roi.sum()))
@@ -876,6 +877,16 @@ def pair_references(setup: PairSetup, *, T_lq_hq: Transform, K_lq=None, options:
     return PairReferences(read_hq, K_hq=setup.K_hq, K_lq=setup.K_lq if K_lq is None else K_lq, T_lq_hq=T_lq_hq,
                           t_hq_us=setup.t_hq, options=options, background=background,
                           hq_color=(read_hq_color, setup.K_hq_color, setup.T_hqdepth_hqcolor.inverse()))
+
+
+def _colour_masked(rule: EdgeRule, ref: np.ndarray, edge_mask, color, background):
+    """The reference and the edge rule's mask after the LQ colour's (:meth:`EdgeRule.colour_mask`; unchanged for
+    a rule without it or without a co-registered LQ colour)."""
+    cm = rule.colour_mask(ref, color, background=background)
+    if not cm.any():
+        return ref, edge_mask
+    mask = cm if edge_mask is None else (edge_mask | cm)
+    return np.where(cm, np.float32(np.nan), ref).astype(np.float32, copy=False), mask
 
 
 def _roi_counts(roi, ref: np.ndarray, masked) -> tuple[int | None, int | None]:

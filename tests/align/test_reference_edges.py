@@ -278,3 +278,76 @@ def test_footprint_mixed_rule_drops_the_mixes_that_extend_a_near_surface_and_cou
     assert fp[0] >= 30, acc  # the near-looking mixes leave whole-jump errors in footprint-fg's reference
     assert fm[0] <= 0.25 * fp[0], acc
     assert fm[1] > fp[1], acc   # the dropped pixels are counted
+
+
+def _colour_edge_loop(z, c, rel):
+    """The colour-edge score pixel by pixel (the formula of :func:`align.reference_edges.colour_edge_score`)."""
+    H, W = z.shape
+    out = np.full((H, W), np.nan)
+    for i in range(H):
+        for j in range(W):
+            if not np.isfinite(z[i, j]):
+                continue
+            a_in, a_out = np.sqrt(3.0) * 255.0, np.inf
+            for di in (-1, 0, 1):
+                for dj in (-1, 0, 1):
+                    ii, jj = i + di, j + dj
+                    if (di or dj) and 0 <= ii < H and 0 <= jj < W:
+                        d = float(np.linalg.norm(c[ii, jj].astype(float) - c[i, j].astype(float)))
+                        if np.isfinite(z[ii, jj]) and abs(z[ii, jj] - z[i, j]) <= rel * z[i, j]:
+                            a_in = min(a_in, d)
+                        elif not np.isfinite(z[ii, jj]) or z[ii, jj] > (1 + rel) * z[i, j]:
+                            a_out = min(a_out, d)
+            if np.isfinite(a_out):
+                out[i, j] = a_in - a_out
+    return out
+
+
+def test_colour_edge_score_equals_a_direct_loop():
+    from align.reference_edges import colour_edge_score
+
+    rng = np.random.default_rng(3)
+    z = rng.choice(np.array([1.0, 1.05, 2.0, 3.0, np.nan], np.float32), size=(13, 17))
+    c = rng.integers(0, 256, size=(13, 17, 3)).astype(np.uint8)
+    np.testing.assert_allclose(colour_edge_score(z, c), _colour_edge_loop(z, c, 0.1), rtol=1e-5, atol=1e-3)
+
+
+def _mosaic(shape, rng, cell, lo, hi):
+    """A random colour mosaic of ``cell``-pixel squares, every channel in ``[lo, hi)``."""
+    H, W = shape
+    cells = rng.integers(lo, hi, size=(H // cell + 1, W // cell + 1, 3))
+    return cells[np.arange(H)[:, None] // cell, np.arange(W)[None, :] // cell].astype(np.uint8)
+
+
+def test_colour_edge_rule_masks_the_pixels_whose_colour_lies_past_the_reference_silhouette():
+    """A disc (2 m) before a wall (5 m), each with its own random colour mosaic (the simulator's kind of texture, at
+    2 px per cell); the LQ colour is point-sampled from the truth. The reference extends the disc by single pixels
+    here and there along its silhouette (the error a concave corner or a slit one HQ step wide leaves): those
+    pixels carry the wall's colour. (A continuous band of wrong pixels shares its colour along the band: the rule
+    does not see it, and is not meant to.)
+    The rule must mask most of them and almost none of the disc's true silhouette pixels; the rules without the
+    colour edge, and a missing colour, mask nothing."""
+    from align.reference_edges import colour_edge_mask
+
+    rng = np.random.default_rng(5)
+    H = W = 120
+    yy, xx = np.mgrid[:H, :W]
+    caught = wrong_total = false = true_edge = 0
+    for cx, cy, r in ((40, 50, 22), (80, 70, 30), (60, 60, 15)):
+        disc = (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
+        truth = np.where(disc, 2.0, 5.0).astype(np.float32)
+        color = np.where(disc[..., None], _mosaic((H, W), rng, 2, 0, 256), _mosaic((H, W), rng, 2, 0, 256))
+        ring = ((xx - cx) ** 2 + (yy - cy) ** 2 <= (r + 1.5) ** 2) & ~disc
+        grown = ring & (np.arctan2(yy - cy, xx - cx) > -1.0) & ((xx + 2 * yy) % 9 == 0)  # single pixels, apart
+        ref = np.where(disc | grown, 2.0, np.nan).astype(np.float32)  # the wall side: a hole of the reference
+        m = colour_edge_mask(ref, color)
+        silhouette = disc & ~(np.roll(disc, 1, 0) & np.roll(disc, -1, 0) & np.roll(disc, 1, 1) & np.roll(disc, -1, 1))
+        caught += int((m & grown).sum()); wrong_total += int(grown.sum())
+        false += int((m & disc).sum()); true_edge += int(silhouette.sum())
+        assert not (m & ~np.isfinite(ref)).any()
+        rule = EdgeRule.named("footprint-colour-fg")
+        assert rule.colour_edge and (rule.colour_mask(ref, color) == m).all()
+        assert not rule.colour_mask(ref, None).any() and not EdgeRule.named("footprint-fg").colour_mask(ref, color).any()
+        assert rule.to_dict()["colour_edge"]["margin"] > 0
+    assert caught >= 0.6 * wrong_total, (caught, wrong_total)
+    assert false <= 0.1 * true_edge, (false, true_edge)

@@ -60,7 +60,9 @@ time-of-flight mixes of session 10. ``"footprint-mixed-fg"`` reads 1.66 [1.49, 1
 slits between limbs thinner than one HQ step (or moving within the ~0.5 ms between the two exposures); with
 the coverage law the ToF mixes hardly count. Neither the HQ depth, nor the reference's shape, nor the LQ or HQ
 colour image (photo-consistency, colour edges), nor a combination of all of them fitted on the truth, puts those
-pixels inside the budget left under 2 % (session 11, ``docs/reference_edges.md``). Cost:
+pixels inside the budget left under 2 % (session 11, ``docs/reference_edges.md``). ``"footprint-colour-fg"``
+(opt-in) takes what the LQ colour edge gives: demo 2.45 [1.87, 3.13] at 1.95 %, lower on every held-out seed
+(2, 4-9) by 0.11-0.52 at 0.13-0.19 points more masked. Cost:
 :func:`footprint_occluders` about 2 ms CPU per demo frame, beside the plain warp's 2.2 ms.
 
 Every measurement behind these choices, session by session, with its commands: ``docs/reference_edges.md``.

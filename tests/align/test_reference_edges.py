@@ -351,3 +351,11 @@ def test_colour_edge_rule_masks_the_pixels_whose_colour_lies_past_the_reference_
         assert rule.to_dict()["colour_edge"]["margin"] > 0
     assert caught >= 0.6 * wrong_total, (caught, wrong_total)
     assert false <= 0.1 * true_edge, (false, true_edge)
+
+
+def test_doctests():
+    import doctest
+
+    import align.reference_edges
+
+    assert doctest.testmod(align.reference_edges).failed == 0

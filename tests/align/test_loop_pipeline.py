@@ -51,6 +51,7 @@ def test_reported_pose_deviation_is_the_loops_where_the_loop_replaced_the_pose(l
     shared error), not the base fit's, which fitted the pose without the lens (about 10 mm here); it covers the
     truth. The shift's deviation: the loop's fit and the shared error in quadrature."""
     from align.extrinsics import pose_std
+    from align.loop.loop import POSE_MODEL_ERROR
     from align.time_shift import MODEL_ERROR_US
 
     root, _, res, meta = lens_dups
@@ -58,7 +59,8 @@ def test_reported_pose_deviation_is_the_loops_where_the_loop_replaced_the_pose(l
     t_sd, r_sd = pose_std(fl.covariance)
     assert meta["T_lq_hq_std"]["translation_mm"] == pytest.approx(1e3 * t_sd)
     assert meta["T_lq_hq_std"]["rotation_deg"] == pytest.approx(r_sd)
-    assert t_sd > pose_std(fl.cov)[0]  # the shared shift error is in
+    assert t_sd > pose_std(fl.cov)[0]  # the shared shift error and the pose's are in
+    assert np.all(np.diag(fl.covariance)[3:6] >= np.diag(fl.cov)[3:6] + POSE_MODEL_ERROR[1] ** 2 * (1 - 1e-9))
     assert t_sd < 0.5 * res.fit.translation_std_m
     dt, _ = res.T_lq_hq.error_to(Transform.from_list(read_truth(root).info["T_lq_hq"]))
     assert dt < 3 * t_sd, (dt, t_sd)

@@ -17,10 +17,17 @@ prefilter (one ``bf`` pass more per frame); ``--fold-mean`` feeds level 2 the me
 ``depth``) times level 2 with motion (:mod:`methods.ssdd.motion`: one optical flow per frame into the
 previous one, the state and the previous output warped); the frames then alternate between the scene
 and the scene shifted by 3 pixels, with a textured colour image.
+
+``--lanes off,on`` times each method with inference lanes off (every pass one after another on all threads)
+and on (:mod:`methods.nn.lanes`: the fold models of the fold mean, the frames of a batch, side by side, one
+thread each), the two alternating frame by frame in the same run, and prints ``x off``: the median time with
+lanes off over this row's (a speed-up above 1; ``min x`` the same for the minima). ``--batch 4`` adds the row
+``ssdd_unet/4``: milliseconds per frame of ``denoise_batch`` on 4 frames (how ``bench run`` feeds it).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -34,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from methods import get  # noqa: E402
 from methods.base import FrameInput  # noqa: E402
 from methods.nn.checkpoint import save_tensors  # noqa: E402
+from methods.nn.lanes import ENV as LANES_ENV  # noqa: E402
 from methods.nn.config import to_dict  # noqa: E402
 from methods.ssdd.config import FOLD_PREFIX, Level1Config, Level2Config, SSDDConfig  # noqa: E402
 from methods.ssdd.model import build_level2  # noqa: E402
@@ -62,12 +70,46 @@ def _weights(folder: Path, width: int, levels: int, prefilter: str, fold_mean: b
 
 
 def _time(fn, frames: int) -> list[float]:
-    fn()                                   # warm-up (allocations, oneDNN kernels)
-    out = []
+    return _time_modes({"": fn}, frames)[""]
+
+
+def _time_modes(fns: dict, frames: int) -> dict[str, list[float]]:
+    """Milliseconds of each call of each function, the functions alternating call by call (one warm-up each)."""
+    for fn in fns.values():
+        fn()                               # warm-up (allocations, oneDNN kernels)
+    out: dict[str, list[float]] = {k: [] for k in fns}
     for _ in range(frames):
-        t0 = time.perf_counter()
-        fn()
-        out.append((time.perf_counter() - t0) * 1000)
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            out[k].append((time.perf_counter() - t0) * 1000)
+    return out
+
+
+def _methods(path: Path, lanes: str):
+    """``ssdd_unet`` and ``ssdd_lstm`` on ``path``, prepared with inference lanes ``"on"`` or ``"off"``."""
+    old = os.environ.get(LANES_ENV)
+    os.environ[LANES_ENV] = "1" if lanes == "on" else "0"
+    try:
+        unet, lstm = get("ssdd_unet", weights=str(path)), get("ssdd_lstm", weights=str(path))
+        unet.ensure_prepared()
+        lstm.ensure_prepared()
+    finally:
+        os.environ.pop(LANES_ENV) if old is None else os.environ.__setitem__(LANES_ENV, old)
+    return unet, lstm
+
+
+def _callables(unet, lstm, depth, frames: list, batch: int) -> dict:
+    """name -> (function of one timed call, frames it denoises)."""
+    state = {"s": lstm.start_sequence(), "n": 0}
+
+    def step():
+        state["n"] += 1
+        _, state["s"] = lstm.denoise_step(frames[state["n"] % 2], state["s"])
+
+    out = {"ssdd_unet": (lambda: unet.denoise(depth), 1), "ssdd_lstm": (step, 1)}
+    if batch > 1:
+        out[f"ssdd_unet/{batch}"] = (lambda: unet.denoise_batch([frames[i % 2] for i in range(batch)]), batch)
     return out
 
 
@@ -88,6 +130,24 @@ def _gmac(fn) -> float:
     return count[0] / 1e9
 
 
+def _rows(a, path: Path, width: int, pre: str, mo: str, depth, frames: list) -> None:
+    """Print one row per method and lanes mode of one weights file."""
+    modes = a.lanes.split(",")
+    per_mode = {m: _callables(*_methods(path, m), depth, frames, a.batch) for m in modes}
+    names = list(per_mode[modes[0]])
+    if mo != "none" and len(a.motion.split(",")) > 1:
+        names = ["ssdd_lstm"]
+    for name in names:
+        n = per_mode[modes[0]][name][1]
+        t = {m: np.array(v) / n for m, v in _time_modes({m: per_mode[m][name][0] for m in modes}, a.frames).items()}
+        g = _gmac(per_mode[modes[0]][name][0]) / n
+        for m in modes:
+            ref = t.get("off", t[m])
+            print(f"{width:>5} {a.levels:>6} {pre:>9} {mo:>6} {name:>11} {m:>5} {np.median(t[m]):>10.1f} "
+                  f"{t[m].min():>8.1f} {np.median(t[m]) / a.bf_ms:>6.2f} {np.median(ref) / np.median(t[m]):>6.2f} "
+                  f"{ref.min() / t[m].min():>6.2f} {g:>6.2f} {g / np.median(t[m]) * 1000:>7.1f}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--widths", default="8,16,32")
@@ -97,35 +157,24 @@ def main() -> int:
     ap.add_argument("--prefilter", default="none", help="comma list of level-1 prefilters to time (none, bilateral)")
     ap.add_argument("--fold-mean", action="store_true", help="level 2 fed the mean of the 2 fold models")
     ap.add_argument("--motion", default="none", help="comma list of level-2 motion kinds to time (none, color, depth)")
+    ap.add_argument("--lanes", default="on", help="comma list of inference-lane modes to time, alternating (on, off)")
+    ap.add_argument("--batch", type=int, default=1, help="also time ssdd_unet's denoise_batch on this many frames")
     a = ap.parse_args()
+    if not set(a.lanes.split(",")) <= {"on", "off"}:
+        ap.error(f"--lanes: a comma list of on, off; got {a.lanes!r}")
     torch.set_num_threads(a.threads)
     _, depth = synthetic_scene((480, 640), seed=1)
     color = np.random.default_rng(0).integers(0, 256, (480, 640, 3)).astype(np.uint8)
     frames = [FrameInput(0, depth, color=color), FrameInput(1, np.roll(depth, 3, axis=1), color=np.roll(color, 3, axis=1))]
     bf = get("bf")
-    ref = _time(lambda: bf.denoise(depth), a.frames)
-    print(f"640x480, {a.threads} torch threads, {a.frames} frames; reference bf: median {np.median(ref):.1f} ms")
-    print(f"{'width':>5} {'levels':>6} {'prefilter':>9} {'motion':>6} {'method':>10} {'median ms':>10} {'min ms':>8} "
-          f"{'x bf':>6} {'GMAC':>6} {'GMAC/s':>7}")
+    a.bf_ms = float(np.median(_time(lambda: bf.denoise(depth), a.frames)))
+    print(f"640x480, {a.threads} torch threads, {a.frames} frames; reference bf: median {a.bf_ms:.1f} ms")
+    print(f"{'width':>5} {'levels':>6} {'prefilter':>9} {'motion':>6} {'method':>11} {'lanes':>5} {'median ms':>10} "
+          f"{'min ms':>8} {'x bf':>6} {'x off':>6} {'min x':>6} {'GMAC':>6} {'GMAC/s':>7}")
     with tempfile.TemporaryDirectory() as tmp:
         for width, pre, mo in ((int(w), p, m) for w in a.widths.split(",") for p in a.prefilter.split(",")
                                for m in a.motion.split(",")):
-            path = _weights(Path(tmp), width, a.levels, pre, a.fold_mean, mo)
-            unet = get("ssdd_unet", weights=str(path))
-            lstm = get("ssdd_lstm", weights=str(path))
-            state = {"s": lstm.start_sequence(), "n": 0}
-
-            def step():
-                state["n"] += 1
-                _, state["s"] = lstm.denoise_step(frames[state["n"] % 2], state["s"])
-
-            todo = (("ssdd_lstm", step),) if mo != "none" and len(a.motion.split(",")) > 1 else \
-                (("ssdd_unet", lambda: unet.denoise(depth)), ("ssdd_lstm", step))
-            for name, fn in todo:
-                t = _time(fn, a.frames)
-                g = _gmac(fn)
-                print(f"{width:>5} {a.levels:>6} {pre:>9} {mo:>6} {name:>10} {np.median(t):>10.1f} {min(t):>8.1f} "
-                      f"{np.median(t) / np.median(ref):>6.2f} {g:>6.2f} {g / np.median(t) * 1000:>7.1f}")
+            _rows(a, _weights(Path(tmp), width, a.levels, pre, a.fold_mean, mo), width, pre, mo, depth, frames)
     return 0
 
 

@@ -77,6 +77,7 @@ class _SSDDBase(LearnedDenoiser):
         import torch
 
         from methods.nn.checkpoint import decode_tensors, load_state
+        from methods.nn.lanes import Lanes
         from methods.ssdd.config import FOLD_PREFIX
         from methods.ssdd.model import build_level1, build_level2
         from methods.ssdd.motion import FlowSource
@@ -93,7 +94,8 @@ class _SSDDBase(LearnedDenoiser):
             net.to(dev, memory_format=torch.channels_last).eval()   # 1.3-2.5x faster convolutions on CPU
         feeders = [n for k, n in nets.items() if k.startswith(FOLD_PREFIX)] or [nets["level1"]]
         flow = FlowSource(self.config.level2.motion) if self.config.level2.motion.enabled else None
-        return {"device": dev, "feeders": feeders, "flow": flow, **nets}
+        lanes = Lanes.split(len(feeders) if self.levels == 2 else self.batch_size, device=dev.type)
+        return {"device": dev, "feeders": feeders, "flow": flow, "lanes": lanes, **nets}
 
     def prepare(self) -> None:
         self.runtime.update(self._load())
@@ -138,8 +140,11 @@ class SSDDUNetDenoiser(_SSDDBase):
         if len(shapes) > 1:
             return [self._denoise_batch([f])[0] for f in frames]
         depth, rgb, base = self._tensors(frames)
-        with torch.inference_mode():
-            out = level1_depth(self.runtime["level1"], depth, rgb, self.config.level1.data, base)[:, 0]
+        lanes, net, data = self.runtime["lanes"], self.runtime["level1"], self.config.level1.data
+        parts = [[None] * lanes.lanes if t is None else torch.tensor_split(t, lanes.lanes) for t in (depth, rgb, base)]
+        with torch.inference_mode():   # the frames side by side on the CPU's lanes (methods/nn/lanes.py)
+            outs = lanes.map(lambda p: level1_depth(net, p[0], p[1], data, p[2]), [p for p in zip(*parts) if len(p[0])])
+        out = torch.cat(outs)[:, 0]
         return [self._finish(o, f.depth) for o, f in zip(out, frames)]
 
 
@@ -180,8 +185,9 @@ class SSDDLSTMDenoiser(_SSDDBase):
         l2 = self.config.level2
         depth, rgb, base = self._tensors([frame])
         image, flow = self._flow(frame, state)
-        with torch.inference_mode():
-            l1s = [level1_depth(net, depth, rgb, self.config.level1.data, base) for net in self.runtime["feeders"]]
+        with torch.inference_mode():   # the fold models side by side on the CPU's lanes (methods/nn/lanes.py)
+            l1s = self.runtime["lanes"].map(lambda net: level1_depth(net, depth, rgb, self.config.level1.data, base),
+                                            self.runtime["feeders"])
             l1 = l1s[0] if len(l1s) == 1 else torch.stack(l1s).mean(dim=0)
             out, net_state = level2_step(self.runtime["level2"], l1, depth, rgb, l2.data,
                                          None if state is None else state[0], sequence_centre=l2.centre == "sequence",

@@ -104,10 +104,11 @@ def test_bench_scores_learned_columns_and_refuses_training_frames(run, cli, tmp_
     assert "WARNING" in board and "allow_train_frames=True" in board
 
 
-def test_fold_mean_feeds_level2_the_mean_of_the_fold_models(tmp_path):
+def test_fold_mean_feeds_level2_the_mean_of_the_fold_models(tmp_path, monkeypatch):
     """``level2.level1_input = "fold_mean"``: the weights carry the k fold models exactly as trained
     (their checkpoints), and ``ssdd_lstm`` feeds level 2 the mean of their predictions, not the final
-    model's: checked against level 2 run by hand on the fold checkpoints' mean."""
+    model's: checked against level 2 run by hand on the fold checkpoints' mean. With two torch threads, the
+    inference lanes give the same depth as the path without them."""
     from methods.base import FrameInput
     from methods.ssdd.model import level1_depth, level2_step
     from methods.ssdd.networks import SSDDLSTMUNet
@@ -144,6 +145,30 @@ def test_fold_mean_feeds_level2_the_mean_of_the_fold_models(tmp_path):
     ok = np.isfinite(depth)
     np.testing.assert_allclose(out[ok], expect[0, 0].numpy()[ok], rtol=0, atol=1e-5)
     assert np.abs(out[ok] - other[0, 0].numpy()[ok]).max() > 1e-5      # not what the final model would feed
+    _lanes_match_the_plain_path(tmp_path / "run", AlignedDataset(tmp_path / "corpus" / "f"), monkeypatch)
+
+
+def _lanes_match_the_plain_path(run, ds, monkeypatch):
+    """The trained models on two torch threads: the fold models (ssdd_lstm) and the frames of a batch (ssdd_unet)
+    side by side on lanes (methods/nn/lanes.py) give the depth of the path without lanes, to 1e-4 of the code."""
+    from methods.base import FrameInput
+    from methods.nn.lanes import ENV
+
+    frames = [FrameInput(i, ds.lq_depth(i)) for i in range(4)]
+    n, outs = torch.get_num_threads(), {}
+    torch.set_num_threads(2)
+    try:
+        for mode in ("0", "1"):
+            monkeypatch.setenv(ENV, mode)
+            unet = get("ssdd_unet", weights=str(run / "ssdd_unet.safetensors"))
+            lstm = get("ssdd_lstm", weights=str(run / "ssdd_lstm.safetensors"))
+            outs[mode] = unet.denoise_batch(frames) + list(lstm.denoise_sequence(frames))
+            assert unet.runtime["lanes"].lanes == lstm.runtime["lanes"].lanes == int(mode) + 1
+    finally:
+        torch.set_num_threads(n)
+    for plain, laned in zip(outs["0"], outs["1"]):
+        assert np.array_equal(np.isnan(plain), np.isnan(laned))
+        assert np.nanmax(np.abs(plain - laned)) < 1e-5
 
 
 @pytest.mark.parametrize("seed", range(8))

@@ -22,7 +22,9 @@ and the scene shifted by 3 pixels, with a textured colour image.
 and on (:mod:`methods.nn.lanes`: the fold models of the fold mean, the frames of a batch, side by side, one
 thread each), the two alternating frame by frame in the same run, and prints ``x off``: the median time with
 lanes off over this row's (a speed-up above 1; ``min x`` the same for the minima). ``--batch 4`` adds the row
-``ssdd_unet/4``: milliseconds per frame of ``denoise_batch`` on 4 frames (how ``bench run`` feeds it).
+``ssdd_unet/4``: milliseconds per frame of ``denoise_batch`` on 4 frames (how ``bench run`` feeds it; on the
+CPU its frames run one at a time, side by side with lanes on). Timings on a machine shared with other jobs
+vary 2-4x; ``chrt -f 1`` in front of the command gives the run the cores (issue 10 worklog, session 11).
 """
 from __future__ import annotations
 

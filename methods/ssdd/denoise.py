@@ -12,6 +12,13 @@ bilateral-filtered first (the base level 1 corrects). With level-2 motion (:mod:
 ``ssdd_lstm`` finds each frame's optical flow into the previous frame (from the LQ colour, which it
 then needs, or the LQ depth) and warps its state by it, exactly as in training.
 
+On the CPU ``ssdd_unet`` runs the frames of a batch one at a time (at 640x480 a batch of 4 took 1.5x as long
+per frame), and with two or more torch threads independent passes run side by side, one thread each
+(:mod:`methods.nn.lanes`): the frames of an ``ssdd_unet`` batch, ``ssdd_lstm``'s k fold models of the fold mean.
+The depth equals the one-pass path's to float rounding (1e-6 m on trained tiny models). Two quiet cores,
+640x480, per frame: ``ssdd_unet`` in batches 1.7x faster, ``ssdd_lstm`` 1.07x (width 16) to 1.2x (width 8);
+on shared cores about 2x (issue 10 worklog, session 11). ``DEPTHBENCH_LANES=0`` turns lanes off.
+
 Options of the weights' config that are not in the paper (:attr:`_SSDDBase.not_in_paper`) are named in
 the provenance, so the leaderboard's config column shows them.
 
@@ -141,9 +148,11 @@ class SSDDUNetDenoiser(_SSDDBase):
             return [self._denoise_batch([f])[0] for f in frames]
         depth, rgb, base = self._tensors(frames)
         lanes, net, data = self.runtime["lanes"], self.runtime["level1"], self.config.level1.data
-        parts = [[None] * lanes.lanes if t is None else torch.tensor_split(t, lanes.lanes) for t in (depth, rgb, base)]
-        with torch.inference_mode():   # the frames side by side on the CPU's lanes (methods/nn/lanes.py)
-            outs = lanes.map(lambda p: level1_depth(net, p[0], p[1], data, p[2]), [p for p in zip(*parts) if len(p[0])])
+        # on the CPU one frame at a time (1.5x faster than a batch of 4 at 640x480), the frames side by side on lanes
+        each = 1 if self.runtime["device"].type == "cpu" else len(frames)
+        parts = [[None] * len(frames) if t is None else torch.split(t, each) for t in (depth, rgb, base)]
+        with torch.inference_mode():
+            outs = lanes.map(lambda p: level1_depth(net, p[0], p[1], data, p[2]), list(zip(*parts)))
         out = torch.cat(outs)[:, 0]
         return [self._finish(o, f.depth) for o, f in zip(out, frames)]
 

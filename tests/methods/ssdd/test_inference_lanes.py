@@ -73,7 +73,7 @@ def test_lanes_give_the_plain_paths_depth(prefilter, tmp_path, monkeypatch):
             for f in frames:
                 y, state = lstm.denoise_step(f, state)
                 steps.append(y)
-            out[mode] = (unet.denoise_batch(frames[:3]), steps)   # 3 frames: lanes of 2 and 1
+            out[mode] = (unet.denoise_batch(frames[:3]), steps)   # 3 frames, one at a time on 2 lanes
     finally:
         torch.set_num_threads(n)
     for plain, laned, f in zip(out["0"][0] + out["0"][1], out["1"][0] + out["1"][1], frames[:3] + frames):

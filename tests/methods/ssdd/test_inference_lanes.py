@@ -1,6 +1,6 @@
 """SSDD inference on lanes (methods/nn/lanes.py; the fold models of the fold mean and the frames of a batch side
-by side) gives the one-after-another path's depth to float rounding, on random networks and inputs; the weights
-still load as tensors only."""
+by side) gives the depth of the plain modules run by hand, one pass after another, to float rounding, on random
+networks and inputs; the weights still load as tensors only."""
 import numpy as np
 import pytest
 import torch
@@ -11,9 +11,9 @@ from methods.nn.config import to_dict
 from methods.nn.lanes import ENV
 from methods.registry import get
 from methods.ssdd.config import FOLD_PREFIX, Level1Config, Level2Config, SSDDConfig
-from methods.ssdd.model import build_level1, build_level2
+from methods.ssdd.model import build_level1, build_level2, level1_depth, level2_step
 from methods.ssdd.networks import NetConfig
-from methods.ssdd.prefilter import PrefilterConfig
+from methods.ssdd.prefilter import PrefilterConfig, prefilter_frames
 
 # 1e-4 of the depth code (depth_scale_m = 0.1 m per unit) in metres
 TOL_M = 1e-5
@@ -48,6 +48,24 @@ def _frames(n: int, shape=(37, 45)) -> list[FrameInput]:
     return out
 
 
+def _by_hand(lstm, frames: list[FrameInput]) -> tuple[list, list]:
+    """Level 1 of each frame alone, and level 2 fed the fold models' mean, straight from the plain modules."""
+    cfg, rt = lstm.config, lstm.runtime
+    unet, steps, state = [], [], None
+    with torch.no_grad():
+        for f in frames:
+            d = torch.from_numpy(f.depth)[None, None]
+            base = prefilter_frames([f.depth], cfg.level1.prefilter)
+            b = None if base is None else torch.from_numpy(base[:, None])
+            unet.append(level1_depth(rt["level1"], d, None, cfg.level1.data, b))
+            l1 = torch.stack([level1_depth(n, d, None, cfg.level1.data, b) for n in rt["feeders"]]).mean(0)
+            y, state = level2_step(rt["level2"], l1, d, None, cfg.level2.data, state,
+                                   sequence_centre=cfg.level2.centre == "sequence", motion=cfg.level2.motion)
+            steps.append(y)
+    keep = lambda t, f: np.where(np.isfinite(f.depth), t[0, 0].numpy(), np.nan)  # noqa: E731
+    return [keep(t, f) for t, f in zip(unet, frames)], [keep(t, f) for t, f in zip(steps, frames)]
+
+
 def _methods(weights, lanes: str, monkeypatch):
     monkeypatch.setenv(ENV, lanes)
     unet, lstm = get("ssdd_unet", weights=str(weights)), get("ssdd_lstm", weights=str(weights))
@@ -57,7 +75,7 @@ def _methods(weights, lanes: str, monkeypatch):
 
 
 @pytest.mark.parametrize("prefilter", ["none", "bilateral"])
-def test_lanes_give_the_plain_paths_depth(prefilter, tmp_path, monkeypatch):
+def test_lanes_give_the_plain_modules_depth(prefilter, tmp_path, monkeypatch):
     weights = tmp_path / "w.safetensors"
     _random_weights(weights, prefilter=prefilter)
     assert load_tensors(weights, kind="weights").tensors          # tensors only: loading never unpickles
@@ -74,10 +92,12 @@ def test_lanes_give_the_plain_paths_depth(prefilter, tmp_path, monkeypatch):
                 y, state = lstm.denoise_step(f, state)
                 steps.append(y)
             out[mode] = (unet.denoise_batch(frames[:3]), steps)   # 3 frames, one at a time on 2 lanes
+        hand = _by_hand(lstm, frames)
     finally:
         torch.set_num_threads(n)
-    for plain, laned, f in zip(out["0"][0] + out["0"][1], out["1"][0] + out["1"][1], frames[:3] + frames):
-        assert np.array_equal(np.isnan(plain), np.isnan(f.depth)) and np.array_equal(np.isnan(laned), np.isnan(plain))
-        ok = np.isfinite(plain)
-        assert np.abs(plain[ok] - f.depth[ok]).max() > 1e-3        # the networks do change the depth
-        assert np.abs(laned[ok] - plain[ok]).max() < TOL_M
+    expect = hand[0][:3] + hand[1]                                # the plain modules by hand
+    assert all(np.abs(e - f.depth)[np.isfinite(e)].max() > 1e-3 for e, f in zip(expect, frames[:3] + frames))
+    for mode in ("0", "1"):                                       # lanes off and on
+        for got, e in zip(out[mode][0] + out[mode][1], expect):
+            assert np.array_equal(np.isnan(got), np.isnan(e))
+            assert np.nanmax(np.abs(got - e)) < TOL_M

@@ -23,7 +23,9 @@ and on (:mod:`methods.nn.lanes`: the fold models of the fold mean, the frames of
 thread each), the two alternating frame by frame in the same run, and prints ``x off``: the median time with
 lanes off over this row's (a speed-up above 1; ``min x`` the same for the minima). ``--batch 4`` adds the row
 ``ssdd_unet/4``: milliseconds per frame of ``denoise_batch`` on 4 frames (how ``bench run`` feeds it; on the
-CPU its frames run one at a time, side by side with lanes on). Timings on a machine shared with other jobs
+CPU its frames run one at a time, side by side with lanes on). ``--lanes off,compile`` adds the level-1 nets
+compiled by ``torch.compile`` (:mod:`methods.nn.compiled`; the compilation happens in the warm-up call, which is
+not timed). Timings on a machine shared with other jobs
 vary 2-4x; ``chrt -f 1`` in front of the command gives the run the cores (issue 10 worklog, session 11).
 """
 from __future__ import annotations
@@ -43,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from methods import get  # noqa: E402
 from methods.base import FrameInput  # noqa: E402
 from methods.nn.checkpoint import save_tensors  # noqa: E402
+from methods.nn.compiled import ENV as COMPILE_ENV  # noqa: E402
 from methods.nn.lanes import ENV as LANES_ENV  # noqa: E402
 from methods.nn.config import to_dict  # noqa: E402
 from methods.ssdd.config import FOLD_PREFIX, Level1Config, Level2Config, SSDDConfig  # noqa: E402
@@ -89,15 +92,18 @@ def _time_modes(fns: dict, frames: int) -> dict[str, list[float]]:
 
 
 def _methods(path: Path, lanes: str):
-    """``ssdd_unet`` and ``ssdd_lstm`` on ``path``, prepared with inference lanes ``"on"`` or ``"off"``."""
-    old = os.environ.get(LANES_ENV)
-    os.environ[LANES_ENV] = "1" if lanes == "on" else "0"
+    """``ssdd_unet`` and ``ssdd_lstm`` on ``path``, prepared with inference lanes ``"on"`` or ``"off"``, or with
+    ``"compile"``: the level-1 nets compiled (``DEPTHBENCH_COMPILE=1``, lanes off; compiled at the warm-up call)."""
+    env = {LANES_ENV: "1" if lanes == "on" else "0", COMPILE_ENV: "1" if lanes == "compile" else "0"}
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
     try:
         unet, lstm = get("ssdd_unet", weights=str(path)), get("ssdd_lstm", weights=str(path))
         unet.ensure_prepared()
         lstm.ensure_prepared()
     finally:
-        os.environ.pop(LANES_ENV) if old is None else os.environ.__setitem__(LANES_ENV, old)
+        for k, v in old.items():
+            os.environ.pop(k) if v is None else os.environ.__setitem__(k, v)
     return unet, lstm
 
 
@@ -159,11 +165,11 @@ def main() -> int:
     ap.add_argument("--prefilter", default="none", help="comma list of level-1 prefilters to time (none, bilateral)")
     ap.add_argument("--fold-mean", action="store_true", help="level 2 fed the mean of the 2 fold models")
     ap.add_argument("--motion", default="none", help="comma list of level-2 motion kinds to time (none, color, depth)")
-    ap.add_argument("--lanes", default="on", help="comma list of inference-lane modes to time, alternating (on, off)")
+    ap.add_argument("--lanes", default="on", help="comma list of inference modes to time, alternating (on, off, compile)")
     ap.add_argument("--batch", type=int, default=1, help="also time ssdd_unet's denoise_batch on this many frames")
     a = ap.parse_args()
-    if not set(a.lanes.split(",")) <= {"on", "off"}:
-        ap.error(f"--lanes: a comma list of on, off; got {a.lanes!r}")
+    if not set(a.lanes.split(",")) <= {"on", "off", "compile"}:
+        ap.error(f"--lanes: a comma list of on, off, compile; got {a.lanes!r}")
     torch.set_num_threads(a.threads)
     _, depth = synthetic_scene((480, 640), seed=1)
     color = np.random.default_rng(0).integers(0, 256, (480, 640, 3)).astype(np.uint8)

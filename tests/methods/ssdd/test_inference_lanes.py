@@ -101,3 +101,32 @@ def test_lanes_give_the_plain_modules_depth(prefilter, tmp_path, monkeypatch):
         for got, e in zip(out[mode][0] + out[mode][1], expect):
             assert np.array_equal(np.isnan(got), np.isnan(e))
             assert np.nanmax(np.abs(got - e)) < TOL_M
+
+
+def test_compile_opt_in_compiles_level1_without_lanes(tmp_path, monkeypatch):
+    """``DEPTHBENCH_COMPILE=1`` (methods/nn/compiled.py): the level-1 nets (final and folds) run through
+    ``torch.compile`` (here with dynamo's eager backend, to stay fast; inductor's numbers are in the worklog), level 2
+    stays eager, lanes are off, and the depth is the plain modules'."""
+    from methods.nn import compiled
+
+    real = torch.compile
+    monkeypatch.setattr(torch, "compile", lambda net: real(net, backend="eager"))
+    monkeypatch.setenv(compiled.ENV, "1")
+    weights = tmp_path / "w.safetensors"
+    _random_weights(weights, prefilter="none")
+    frames = _frames(3)
+    n = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        unet, lstm = _methods(weights, "1", monkeypatch)
+        got = unet.denoise_batch(frames) + list(lstm.denoise_sequence(frames))
+        monkeypatch.setenv(compiled.ENV, "0")
+        hand = _by_hand(_methods(weights, "1", monkeypatch)[1], frames)
+    finally:
+        torch.set_num_threads(n)
+    is_compiled = lambda net: isinstance(net, torch._dynamo.eval_frame.OptimizedModule)  # noqa: E731
+    assert is_compiled(unet.runtime["level1"]) and all(is_compiled(f) for f in lstm.runtime["feeders"])
+    assert len(lstm.runtime["feeders"]) == 2 and not is_compiled(lstm.runtime["level2"])
+    assert unet.runtime["lanes"].lanes == lstm.runtime["lanes"].lanes == 1
+    for g, e in zip(got, hand[0] + hand[1]):
+        assert np.array_equal(np.isnan(g), np.isnan(e)) and np.nanmax(np.abs(g - e)) < TOL_M

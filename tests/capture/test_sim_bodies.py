@@ -32,10 +32,11 @@ def _angles_deg(smooth: bool):
     rays = cam.rays.reshape(120, 160, 6)
     p = rays[..., :3] + ans["t_hit"][..., None] * rays[..., 3:]
     on_ball = np.isfinite(ans["t_hit"]) & (np.linalg.norm(p - CENTRE, axis=-1) < 0.41)
-    true = (p - CENTRE) / np.linalg.norm(p - CENTRE, axis=-1, keepdims=True)
-    cos = np.abs(np.sum(n * true, axis=-1))
+    d = (p - CENTRE)[on_ball]  # rays that miss have no point (NaN)
+    true = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    cos = np.abs(np.sum(n[on_ball] * true, axis=-1))
     wall = np.isfinite(ans["t_hit"]) & ~on_ball
-    return np.degrees(np.arccos(np.clip(cos[on_ball], -1, 1))), n[wall], ans["primitive_normals"][wall]
+    return np.degrees(np.arccos(np.clip(cos, -1, 1))), n[wall], ans["primitive_normals"][wall]
 
 
 def test_smooth_parts_shade_with_the_surface_normal():

@@ -231,7 +231,7 @@ class EdgeRule:
     def colour_mask(self, reference: np.ndarray, color: np.ndarray | None, *,
                     background: np.ndarray | None = None) -> np.ndarray:
         """The pixels ``(H, W)`` bool the LQ colour image masks in ``reference`` (:func:`colour_edge_mask`; with
-        :attr:`scored_only` and a ``background``, only those in front of it). None where the rule has no
+        :attr:`scored_only` and a ``background``, only those in front of it). No pixel where the rule has no
         :attr:`colour_edge` or ``color`` is ``None`` (no co-registered LQ colour)."""
         if not self.colour_edge or color is None:
             return np.zeros(np.shape(reference), bool)

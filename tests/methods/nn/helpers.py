@@ -1,6 +1,7 @@
 """Small synthetic aligned datasets and training manifests for the training tests (fast: no simulator)."""
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -95,3 +96,17 @@ def write_test_config(path: Path, *, epochs: int = 2, seed: int = 0) -> Path:
     """A training config for tests: 4-channel, 2-level networks on 32-pixel crops, a few steps."""
     path.write_text(TEST_CONFIG.format(epochs=epochs, seed=seed))
     return path
+
+
+@contextmanager
+def torch_threads(n: int):
+    """Run the block with ``n`` torch intra-op threads, then restore the caller's count (tests/methods runs on one:
+    ``conftest.py``)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)

@@ -5,14 +5,13 @@ import pytest
 import torch
 
 from methods.nn.lanes import ENV, Lanes
+from tests.methods.nn.helpers import torch_threads
 
 
 @pytest.fixture
 def two_threads():
-    n = torch.get_num_threads()
-    torch.set_num_threads(2)
-    yield
-    torch.set_num_threads(n)
+    with torch_threads(2):
+        yield
 
 
 def test_lanes_run_side_by_side_on_their_own_threads_in_inference_mode(two_threads):
@@ -44,16 +43,12 @@ def test_one_lane_runs_in_the_callers_thread_with_its_grad_mode(two_threads):
     (2, 2, None, (2, 1)), (2, 3, None, (2, 1)), (2, 1, None, (1, 2)), (4, 2, None, (2, 2)),
     (1, 2, None, (1, 1)), (2, 2, "0", (1, 2)), (2, 2, "off", (1, 2)), (2, 2, "1", (2, 1))])
 def test_split_shares_the_threads_out(threads, jobs, env, expect, monkeypatch):
-    n = torch.get_num_threads()
     if env is None:
         monkeypatch.delenv(ENV, raising=False)
     else:
         monkeypatch.setenv(ENV, env)
-    torch.set_num_threads(threads)
-    try:
+    with torch_threads(threads):
         lanes = Lanes.split(jobs)
-    finally:
-        torch.set_num_threads(n)
     assert (lanes.lanes, lanes.threads) == expect
 
 

@@ -14,6 +14,7 @@ from methods.ssdd.config import FOLD_PREFIX, Level1Config, Level2Config, SSDDCon
 from methods.ssdd.model import build_level1, build_level2, level1_depth, level2_step
 from methods.ssdd.networks import NetConfig
 from methods.ssdd.prefilter import PrefilterConfig, prefilter_frames
+from tests.methods.nn.helpers import torch_threads
 
 # 1e-4 of the depth code (depth_scale_m = 0.1 m per unit) in metres
 TOL_M = 1e-5
@@ -80,9 +81,7 @@ def test_lanes_give_the_plain_modules_depth(prefilter, tmp_path, monkeypatch):
     _random_weights(weights, prefilter=prefilter)
     assert load_tensors(weights, kind="weights").tensors          # tensors only: loading never unpickles
     frames = _frames(5)
-    n = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
+    with torch_threads(2):
         out = {}
         for mode in ("0", "1"):
             unet, lstm = _methods(weights, mode, monkeypatch)
@@ -93,8 +92,6 @@ def test_lanes_give_the_plain_modules_depth(prefilter, tmp_path, monkeypatch):
                 steps.append(y)
             out[mode] = (unet.denoise_batch(frames[:3]), steps)   # 3 frames, one at a time on 2 lanes
         hand = _by_hand(lstm, frames)
-    finally:
-        torch.set_num_threads(n)
     expect = hand[0][:3] + hand[1]                                # the plain modules by hand
     assert all(np.abs(e - f.depth)[np.isfinite(e)].max() > 1e-3 for e, f in zip(expect, frames[:3] + frames))
     for mode in ("0", "1"):                                       # lanes off and on
@@ -115,15 +112,11 @@ def test_compile_opt_in_compiles_level1_without_lanes(tmp_path, monkeypatch):
     weights = tmp_path / "w.safetensors"
     _random_weights(weights, prefilter="none")
     frames = _frames(3)
-    n = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
+    with torch_threads(2):
         unet, lstm = _methods(weights, "1", monkeypatch)
         got = unet.denoise_batch(frames) + list(lstm.denoise_sequence(frames))
         monkeypatch.setenv(compiled.ENV, "0")
         hand = _by_hand(_methods(weights, "1", monkeypatch)[1], frames)
-    finally:
-        torch.set_num_threads(n)
     is_compiled = lambda net: isinstance(net, torch._dynamo.eval_frame.OptimizedModule)  # noqa: E731
     assert is_compiled(unet.runtime["level1"]) and all(is_compiled(f) for f in lstm.runtime["feeders"])
     assert len(lstm.runtime["feeders"]) == 2 and not is_compiled(lstm.runtime["level2"])

@@ -153,19 +153,17 @@ def _lanes_match_the_plain_path(run, ds, monkeypatch):
     side by side on lanes (methods/nn/lanes.py) give the depth of the path without lanes, to 1e-4 of the code."""
     from methods.base import FrameInput
     from methods.nn.lanes import ENV
+    from tests.methods.nn.helpers import torch_threads
 
     frames = [FrameInput(i, ds.lq_depth(i)) for i in range(4)]
-    n, outs = torch.get_num_threads(), {}
-    torch.set_num_threads(2)
-    try:
+    outs = {}
+    with torch_threads(2):
         for mode in ("0", "1"):
             monkeypatch.setenv(ENV, mode)
             unet = get("ssdd_unet", weights=str(run / "ssdd_unet.safetensors"))
             lstm = get("ssdd_lstm", weights=str(run / "ssdd_lstm.safetensors"))
             outs[mode] = unet.denoise_batch(frames) + list(lstm.denoise_sequence(frames))
             assert unet.runtime["lanes"].lanes == lstm.runtime["lanes"].lanes == int(mode) + 1
-    finally:
-        torch.set_num_threads(n)
     for plain, laned in zip(outs["0"], outs["1"]):
         assert np.array_equal(np.isnan(plain), np.isnan(laned))
         assert np.nanmax(np.abs(plain - laned)) < 1e-5

@@ -36,6 +36,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import torch
@@ -95,15 +96,10 @@ def _methods(path: Path, lanes: str):
     """``ssdd_unet`` and ``ssdd_lstm`` on ``path``, prepared with inference lanes ``"on"`` or ``"off"``, or with
     ``"compile"``: the level-1 nets compiled (``DEPTHBENCH_COMPILE=1``, lanes off; compiled at the warm-up call)."""
     env = {LANES_ENV: "1" if lanes == "on" else "0", COMPILE_ENV: "1" if lanes == "compile" else "0"}
-    old = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    try:
+    with mock.patch.dict(os.environ, env):   # read when the methods prepare (methods.ssdd.denoise)
         unet, lstm = get("ssdd_unet", weights=str(path)), get("ssdd_lstm", weights=str(path))
         unet.ensure_prepared()
         lstm.ensure_prepared()
-    finally:
-        for k, v in old.items():
-            os.environ.pop(k) if v is None else os.environ.__setitem__(k, v)
     return unet, lstm
 
 

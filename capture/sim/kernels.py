@@ -127,3 +127,33 @@ def depth_counts(depth, unit):
         c = np.rint(np.float64(flat_in[i]) / unit)
         flat_out[i] = np.uint16(c) if (c >= 1.0 and c <= 65535.0) else np.uint16(0)
     return out
+
+
+@njit(cache=True, nogil=True)
+def footprint_reduce(footprint, amplitude_weighted, z_out, near_out, far_out):
+    """Per pixel of ``footprint`` ``(H, W, S)`` float32 metres (NaN = the ray met nothing): the mean of the finite
+    depths (weighted by ``1 / z**2`` with ``amplitude_weighted``), the nearest and the farthest, into the ``(H, W)``
+    float32 outputs (NaN where none is finite); :func:`capture.sim.noise.footprint_depth` with numpy is the
+    reference (``tests/capture/test_sim_footprint.py`` checks the two agree)."""
+    H, W, S = footprint.shape
+    for i in range(H):
+        for j in range(W):
+            num = 0.0
+            den = 0.0
+            lo = np.inf
+            hi = -np.inf
+            for k in range(S):
+                z = footprint[i, j, k]
+                if not np.isfinite(z):
+                    continue
+                w = 1.0 / (z * z) if amplitude_weighted else 1.0
+                num += w * z
+                den += w
+                lo = min(lo, z)
+                hi = max(hi, z)
+            if den > 0:
+                z_out[i, j] = num / den
+                near_out[i, j] = lo
+                far_out[i, j] = hi
+            else:
+                z_out[i, j] = near_out[i, j] = far_out[i, j] = np.nan

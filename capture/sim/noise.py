@@ -51,6 +51,24 @@ Time-of-flight HQ (Kinect v2 / Azure-like), in depth:
     ``albedo / z**2`` of the two surfaces (equal albedo): ``w = c a / (c a + 1 - c)`` with
     ``a = (z_far / z_near)**2``: a phasor sum of the two returns, linearised;
 
+  The renderer samples each pixel's centre, so these laws stand in for the footprint by chance. With
+  ``footprint_samples`` = ``n`` > 1 (the default, 4; session 12) the footprint itself is rendered: ``n x n`` rays
+  spread over the pixel (:func:`capture.sim.render.footprint_rays`), and a pixel is flying where its footprint's
+  depths span more than ``flying_jump_m`` (every such pixel, not a ``flying_fraction`` of the 3x3 jumps). Its depth
+  is then the linearised phasor sum of the footprint's returns (:func:`footprint_depth`): the mean of the
+  footprint's depths (``"coverage"``; with two surfaces exactly ``c z_near + (1 - c) z_far``, ``c`` the covered
+  share), or their mean weighted by the amplitude ``1 / z**2`` (``"coverage-amplitude"``); rays that meet nothing
+  return nothing. ``"uniform"`` keeps its random weight between the footprint's nearest and farthest depth. The
+  random draws are those of the point-sampled model, so the rest of a session's sensor noise is unchanged.
+
+  Why: a surface thinner than one pixel step (a slit between limbs, a concave corner) vanishes between point
+  samples without a trace, while a real time-of-flight pixel integrates its footprint and reads a mix there; the
+  warped reference then carries the wrong surface across it with nothing to flag it (``docs/reference_edges.md``,
+  session 12). On the Azure Kinect capture's 0.1-0.2 m jumps 3.2 % [0, 7.8 %] of the far-side mixes read nearer
+  than the midpoint (session 10's statistic); the rendered footprint gives 3.5 % [1.2, 6.8 %] on the demo
+  session's HQ, the point-sampled coverage law 12.6 % [10.7, 14.6 %]. ``n`` = 4: with 3 the demo's reference keeps 2-4
+  pixels off by more than 0.3 m that 4 and 5 (0-1) do not (structures a third of a pixel wide);
+
   and a ``flying_invalid_fraction`` of the flying pixels across a jump over ``flying_invalid_jump_m``
   is invalidated instead (a depth engine that detects mixed signals, as the Azure Kinect's does: on
   the real capture, at jumps > 0.2 m, 54 % of the edge band is invalid and 0.7 % of its valid pixels
@@ -74,6 +92,7 @@ import cv2
 import numpy as np
 
 from capture.sim.errors import SimulationError
+from capture.sim.kernels import footprint_reduce
 
 
 @dataclass(frozen=True)
@@ -134,11 +153,14 @@ class TofNoise:
     max_depth_m: float = 8.0
     correlation_px: float = 0.0
     outlier_fraction: float = 0.0
+    footprint_samples: int = 4
     model: str = "tof"
 
     def __post_init__(self) -> None:
         if self.flying_mix not in FLYING_MIXES:
             raise SimulationError(f"flying_mix {self.flying_mix!r} is not one of {', '.join(FLYING_MIXES)}")
+        if int(self.footprint_samples) != self.footprint_samples or self.footprint_samples < 0:
+            raise SimulationError(f"footprint_samples {self.footprint_samples!r} is not a whole number >= 0")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -379,12 +401,47 @@ def flying_weight(z: np.ndarray, z_near: np.ndarray, z_far: np.ndarray, u: np.nd
     return (c * a / (c * a + 1 - c)).astype(np.float32)
 
 
-def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: np.random.Generator) -> NoisyDepth:
+def footprint_depth(footprint: np.ndarray, *, mix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What a time-of-flight pixel reads from the depths ``footprint`` ``(H, W, S)`` (metres, NaN = the ray met
+    nothing) of ``S`` rays over its footprint: ``(z, z_near, z_far)``, each ``(H, W)`` float32: the linearised
+    phasor sum of the returns (``"coverage"``: their mean; ``"coverage-amplitude"``: weighted by the amplitude
+    ``1 / z**2``; ``"uniform"``: the mean, unused) and the nearest and farthest depth (NaN where nothing returns).
+
+    >>> fp = np.array([[[1.0, 1.0, 1.0, 3.0]]], np.float32)  # a quarter of the footprint on a far surface
+    >>> [round(float(v[0, 0]), 3) for v in footprint_depth(fp, mix="coverage")]
+    [1.5, 1.0, 3.0]
+    >>> round(float(footprint_depth(fp, mix="coverage-amplitude")[0][0, 0]), 3)  # 3 x 1 + 3 / 9, over 3 + 1 / 9
+    1.071
+    """
+    hit = np.isfinite(footprint)
+    weight = hit.astype(np.float32)
+    if mix == "coverage-amplitude":
+        with np.errstate(divide="ignore", invalid="ignore"):
+            weight = np.where(hit, 1.0 / np.square(footprint), 0.0).astype(np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = (np.where(hit, footprint, 0.0) * weight).sum(-1) / weight.sum(-1)
+        z_near = np.where(hit.any(-1), np.where(hit, footprint, np.inf).min(-1), np.nan)
+        z_far = np.where(hit.any(-1), np.where(hit, footprint, -np.inf).max(-1), np.nan)
+    return z.astype(np.float32), z_near.astype(np.float32), z_far.astype(np.float32)
+
+
+def _footprint_depth_compiled(footprint: np.ndarray, *, mix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`footprint_depth` by the compiled kernel :func:`capture.sim.kernels.footprint_reduce`."""
+    H, W = footprint.shape[:2]
+    z, near, far = (np.empty((H, W), np.float32) for _ in range(3))
+    footprint_reduce(np.ascontiguousarray(footprint, np.float32), mix == "coverage-amplitude", z, near, far)
+    return z, near, far
+
+
+def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: np.random.Generator,
+              footprint: np.ndarray | None = None) -> NoisyDepth:
     """Simulate a time-of-flight depth image.
 
     Args:
-        z_true: ``(H, W)`` float32 true z-depth in metres, NaN where no surface.
+        z_true: ``(H, W)`` float32 true z-depth in metres at the pixel centres, NaN where no surface.
         albedo: ``(H, W)`` float32 surface reflectance (luminance of the albedo) in [0, 1].
+        footprint: ``(H, W, S)`` float32 depths of ``S`` rays over each pixel's footprint (module docstring;
+            :func:`capture.sim.render.footprint_rays`), or None: the point-sampled model.
     Returns:
         :class:`NoisyDepth` with masks ``flying``, ``dark``, ``range``.
     """
@@ -396,7 +453,12 @@ def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: n
     flying = valid & (z_far - z_near > noise.flying_jump_m) & (rng.random(z_true.shape) < noise.flying_fraction)
     z_far = np.minimum(z_far, far / 2)
     w = flying_weight(zf, z_near, z_far, rng.random(z_true.shape, dtype=np.float32), mix=noise.flying_mix)
-    z_mixed = np.where(flying, w * z_near + (1 - w) * z_far, zf)
+    if footprint is None:
+        z_mixed = np.where(flying, w * z_near + (1 - w) * z_far, zf)
+    else:
+        z_sum, z_near, z_far = _footprint_depth_compiled(footprint, mix=noise.flying_mix)
+        flying = valid & (z_far - z_near > noise.flying_jump_m)
+        z_mixed = np.where(flying, w * z_near + (1 - w) * z_far if noise.flying_mix == "uniform" else z_sum, zf)
     sigma = noise.sigma_z(z_mixed).astype(np.float32)
     n = correlated_normal(z_true.shape, noise.correlation_px, rng) if noise.correlation_px else \
         rng.standard_normal(z_true.shape, dtype=np.float32)

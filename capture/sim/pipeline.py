@@ -19,7 +19,7 @@ import numpy as np
 from capture.sim.effects import SensorEffects
 from capture.sim.kernels import depth_counts
 from capture.sim.output import TRUTH_DEPTH_UNIT_M, Plan
-from capture.sim.render import Renderer, camera_rays
+from capture.sim.render import Renderer
 from capture.sim.scene import build_scene
 from capture.sim.sensors import SensorCameras, render_frame
 from depthbench import frames as codec
@@ -67,9 +67,7 @@ class FrameWorker:
         self.plan = plan
         scene = build_scene(plan.scene_name, seed=plan.seed, static=plan.static)
         self.renderer = Renderer(scene, nthreads=nthreads, reuse_still=reuse_still)
-        self.cams = {s.id: SensorCameras(camera_rays(s.depth, s.T_world_depth),
-                                         None if s.color_is_depth else camera_rays(s.color, s.T_world_color))
-                     for s in plan.rig.sensors}
+        self.cams = {s.id: SensorCameras.of(s) for s in plan.rig.sensors}
 
     def render(self, event: Event) -> EncodedFrame:
         """Render and encode one frame."""

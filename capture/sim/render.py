@@ -54,6 +54,26 @@ def camera_rays(K: Intrinsics, T_world_cam: Transform) -> CameraRays:
     return CameraRays(K, T_world_cam, rays, d_cam[..., :2].astype(np.float32))
 
 
+def footprint_rays(K: Intrinsics, T_world_cam: Transform, n: int) -> CameraRays:
+    """Rays over every pixel's footprint: ``n x n`` per pixel of ``K``, at the centres of the ``n x n`` cells the
+    pixel splits into (the camera at ``n`` times the resolution, :meth:`Intrinsics.scaled`). Pixel ``(u, v)``'s rays
+    are those of fine pixels ``(n u + i, n v + j)``, ``i, j < n``, at ``(u + (i + 0.5) / n - 0.5, ...)``;
+    :func:`footprint_samples` regroups a cast of them per pixel.
+
+    >>> K = Intrinsics(4, 3, 100.0, 100.0, 1.5, 1.0)
+    >>> rays = footprint_rays(K, Transform.identity(), 2)
+    >>> rays.intrinsics.shape, [round(float(x) * 100, 2) for x in rays.xy[0, 0]]  # pixel (0, 0)'s first ray
+    ((6, 8), [-1.75, -1.25])
+    """
+    return camera_rays(K.scaled(K.width * n, K.height * n), T_world_cam)
+
+
+def footprint_samples(z_fine: np.ndarray, n: int) -> np.ndarray:
+    """A cast of :func:`footprint_rays` ``(n H, n W)`` regrouped per pixel: ``(H, W, n * n)``."""
+    H, W = z_fine.shape[0] // n, z_fine.shape[1] // n
+    return z_fine.reshape(H, n, W, n).transpose(0, 2, 1, 3).reshape(H, W, n * n)
+
+
 @dataclass
 class Hits:
     """What one camera sees, all ``(H, W)``: ``z`` float32 metres (NaN = nothing), the
@@ -196,6 +216,24 @@ class Renderer:
         H, W = K.shape
         return Hits(layer.z.reshape(H, W), layer.lum_albedo.reshape(H, W), layer.lum_shaded.reshape(H, W),
                     rgb8.reshape(H, W, 3))
+
+    def cast_depth(self, cam: CameraRays, t_s: float) -> np.ndarray:
+        """The z-depth ``(H, W)`` float32 metres (NaN = nothing) of ``cam``'s rays at ``t_s``: :meth:`cast`'s
+        ``z`` without the shading (the still layer is shaded once, as for :meth:`cast`)."""
+        K = cam.intrinsics
+        rc = self._scene_at(t_s)
+        if self.reuse_still and self.scene.n_still_triangles > 0:
+            z = self._still_layer(cam).z.copy()
+            idx = self.roi_indices(cam, t_s) if self.scene.n_still_triangles < len(self.scene.triangles) else \
+                np.zeros(0, np.int64)
+        else:
+            z, idx = np.empty(K.width * K.height, np.float32), np.arange(K.width * K.height, dtype=np.int64)
+        if idx.size:
+            t0 = time.perf_counter()
+            t_hit = rc.cast_rays(o3d.core.Tensor(cam.rays[idx]), nthreads=self.nthreads)["t_hit"].numpy()
+            z[idx] = np.where(np.isfinite(t_hit), t_hit, np.nan)
+            self.stage_s["raycast"] += time.perf_counter() - t0
+        return z.reshape(K.shape)
 
     def cast_raw(self, cam: CameraRays, t_s: float) -> dict[str, np.ndarray]:
         """Open3D's full answer for every ray of ``cam`` at ``t_s`` (arrays shaped ``(H, W, ...)``)."""

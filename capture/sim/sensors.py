@@ -13,7 +13,7 @@ import numpy as np
 
 from capture.sim.effects import ROLLING_SHUTTER_BAND_MS, SensorEffects
 from capture.sim.noise import StereoNoise, TofNoise, stereo_depth, tof_depth
-from capture.sim.render import CameraRays, Renderer
+from capture.sim.render import CameraRays, Renderer, camera_rays, footprint_rays, footprint_samples
 from capture.sim.rigs import SensorSpec
 
 
@@ -30,10 +30,21 @@ class SensorFrame:
 
 @dataclass
 class SensorCameras:
-    """Cached rays of a sensor's depth camera and (unless co-registered) colour camera."""
+    """Cached rays of a sensor's depth camera, (unless co-registered) its colour camera, and (a time-of-flight
+    sensor that integrates its pixels' footprints, ``TofNoise.footprint_samples`` > 1) its depth pixels' footprints
+    (:func:`capture.sim.render.footprint_rays`)."""
 
     depth: CameraRays
     color: CameraRays | None
+    footprint: CameraRays | None = None
+
+    @classmethod
+    def of(cls, spec: SensorSpec) -> "SensorCameras":
+        """The cameras of ``spec``, posed in the world."""
+        n = getattr(spec.noise, "footprint_samples", 0)
+        return cls(camera_rays(spec.depth, spec.T_world_depth),
+                   None if spec.color_is_depth else camera_rays(spec.color, spec.T_world_color),
+                   footprint_rays(spec.depth, spec.T_world_depth, n) if n > 1 else None)
 
 
 class Timings(dict):
@@ -65,7 +76,8 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
                                  fx=K.fx, cx=K.cx, rng=rng)
         else:
             assert isinstance(spec.noise, TofNoise)
-            noisy = tof_depth(hits.z, hits.albedo_luminance, noise=spec.noise, rng=rng)
+            noisy = tof_depth(hits.z, hits.albedo_luminance, noise=spec.noise, rng=rng,
+                              footprint=_footprint(renderer, cams, t_s))
         depth = noisy.depth
         if fx.changes_depth:
             depth = (depth * np.float32(fx.depth_scale) + np.float32(fx.depth_offset_m)).astype(np.float32)
@@ -78,6 +90,14 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
     else:
         color = hits.rgb
     return SensorFrame(depth, color, hits.z, noisy.invalid)
+
+
+def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float) -> np.ndarray | None:
+    """The depths over each depth pixel's footprint ``(H, W, n * n)``, or None (a point-sampled sensor)."""
+    if cams.footprint is None:
+        return None
+    return footprint_samples(renderer.cast_depth(cams.footprint, t_s),
+                             cams.footprint.intrinsics.width // cams.depth.intrinsics.width)
 
 
 def rolling_shutter_color(renderer: Renderer, cam: CameraRays, t_s: float, readout_s: float, *, noise_seed: int,

@@ -78,13 +78,17 @@ from align.errors import OptionError
 from align.mixed_pixels import mixed_samples, nearest_around
 from align.roi import in_front
 
+#: the footprint rules' far-side band, destination pixels: 2 since session 12 (3 before; with the simulated HQ that
+#: integrates its pixel footprints, 3 masks 2.35 % of the demo's ROI, over issue 12's 2 %; ``docs/reference_edges.md``)
+FOOTPRINT_BAND_PX = 2
 #: the named rules: (edge reach of the warp, mask width in destination pixels, HQ mixed samples as occluders,
 #: the band only where the reference is scored, every HQ sample's footprint as an occluder; with both the
 #: mixed samples and the occluders, the mixed samples are not warped and still occlude)
 RULES = {"strict": (0.0, 3, False, False, False), "midpoint": (0.5, 0, False, False, False),
          "mixed": (0.0, 3, True, False, False), "strict-fg": (0.0, 3, False, True, False),
-         "mixed-fg": (0.0, 3, True, True, False), "footprint-fg": (0.0, 3, False, True, True),
-         "footprint-mixed-fg": (0.0, 3, True, True, True), "footprint-colour-fg": (0.0, 3, False, True, True)}
+         "mixed-fg": (0.0, 3, True, True, False), "footprint-fg": (0.0, FOOTPRINT_BAND_PX, False, True, True),
+         "footprint-mixed-fg": (0.0, FOOTPRINT_BAND_PX, True, True, True),
+         "footprint-colour-fg": (0.0, FOOTPRINT_BAND_PX, False, True, True)}
 #: the rules that also mask by the LQ colour image (:func:`colour_edge_mask`)
 COLOUR_RULES = frozenset({"footprint-colour-fg"})
 #: :func:`colour_edge_mask`'s margin (RGB distance, 0-255 per channel), chosen on the demo and seed 1 (40 / 60 / 80:

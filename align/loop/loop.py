@@ -397,8 +397,9 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
     c = o.scale_px or 1.5
     x = refit(model, x, _cols(model, []), c=c, max_nfev=o.max_nfev)
     if o.scale_px is None:
-        r = model.residuals(x)
-        c = float(max(0.3, 2.5 * 1.4826 * np.median(np.abs(r[r != 0]))))
+        r = np.abs(model.residuals(x))
+        r = r[r != 0]
+        c = float(max(0.3, 2.5 * 1.4826 * np.median(r))) if r.size else 0.3  # none: as few features as unknowns
     x_base = x.copy()
     secs["base_fit"] = time.perf_counter() - t_start
     stages: list[StageRecord] = []

@@ -289,7 +289,7 @@ def test_reference_edge_rule_is_recorded_and_halves_large_errors(sim_plus55, ali
     meta = json.loads((out / "aligned.json").read_text())
     rule = meta["reference_edges"]
     assert rule["rule"] == "footprint-fg" and rule["scored_only"] and rule["occluders"] and rule["edge_reach"] == 0
-    assert rule["mask_px"] == 3
+    assert rule["mask_px"] == 2
     assert 0 < rule["masked_roi_pixels"] < 0.1 * rule["roi_pixels"]
     ds, sess = AlignedDataset(out), open_session(sim_plus55)
     r = EdgeRule.named("midpoint")

@@ -208,7 +208,7 @@ def test_footprint_rule_hides_what_the_dropped_near_samples_covered():
     then strict-fg's band; it leaves under half the whole-jump errors in the ROI at under 2 % more masked."""
     from scipy.ndimage import minimum_filter
 
-    from align.reference_edges import OCCLUDER_REL, footprint_occluders
+    from align.reference_edges import FOOTPRINT_BAND_PX, OCCLUDER_REL, footprint_occluders
     from align.roi import in_front
 
     acc = {}
@@ -223,7 +223,7 @@ def test_footprint_rule_hides_what_the_dropped_near_samples_covered():
                 warper = DepthWarper(Kh, Kl, T_lq_hq, edge_reach=0.0)
                 plain, occ = warper(dh), footprint_occluders(warper, dh)
                 hide = (plain - occ > OCCLUDER_REL * occ) & in_front(plain, bg)
-                hide |= occluded_side(np.where(hide, np.nan, plain), radius_px=3) & in_front(plain, bg)
+                hide |= occluded_side(np.where(hide, np.nan, plain), radius_px=FOOTPRINT_BAND_PX) & in_front(plain, bg)
                 assert np.array_equal(r.depth, np.where(hide, np.float32(np.nan), plain), equal_nan=True)
     strict, fp = acc["strict-fg"], acc["footprint-fg"]
     assert strict[0] >= 200, acc  # the leaks exist on this scene
@@ -253,7 +253,7 @@ def test_footprint_mixed_rule_drops_the_mixes_that_extend_a_near_surface_and_cou
     the pixels the plain warp had there and those more than OCCLUDER_REL behind the occluders masked, then the band;
     its mask holds every pixel it dropped; and it leaves at most a quarter of footprint-fg's whole-jump errors."""
     from align.mixed_pixels import mixed_samples
-    from align.reference_edges import OCCLUDER_REL, footprint_occluders
+    from align.reference_edges import FOOTPRINT_BAND_PX, OCCLUDER_REL, footprint_occluders
     from align.roi import in_front
 
     acc = {}
@@ -271,7 +271,7 @@ def test_footprint_mixed_rule_drops_the_mixes_that_extend_a_near_surface_and_cou
                 out = np.where(dropped & ~in_front(plain, bg), plain, out)
                 dropped &= in_front(plain, bg)
                 hide = ((out - occ > OCCLUDER_REL * occ) & in_front(out, bg)) | dropped
-                hide |= occluded_side(np.where(hide, np.nan, out), radius_px=3) & in_front(out, bg)
+                hide |= occluded_side(np.where(hide, np.nan, out), radius_px=FOOTPRINT_BAND_PX) & in_front(out, bg)
                 assert np.array_equal(r.depth, np.where(hide, np.float32(np.nan), out), equal_nan=True)
                 assert not (dropped & ~r.edge_mask).any()   # every dropped pixel is counted as masked
     fp, fm = acc["footprint-fg"], acc["footprint-mixed-fg"]

@@ -46,11 +46,12 @@ def test_spread_picks_evenly_with_both_ends():
 
 
 def test_a_pair_whose_matches_fit_no_pose_takes_more_probes(tmp_path, caplog):
-    # synchronous people session, 2 probes of at most 60 SIFT features: 14 colour matches pass a minimum of 12, but
-    # the static ones give PnP no consistent pose; before, fit_pair stopped there ("PnP found no consistent pose")
+    # synchronous people session (seed 48; 11 before the simulated HQ integrated its footprints), 2 probes of at most
+    # 60 SIFT features: the colour matches pass a minimum of 12, but the static ones give PnP no consistent pose;
+    # before, fit_pair stopped there ("PnP found no consistent pose")
     from align.pipeline import fit_pair
 
-    root = simulate_session(tmp_path / "s", time_shift_us=0, seed=11, seconds=2.0)
+    root = simulate_session(tmp_path / "s", time_shift_us=0, seed=48, seconds=2.0)
     setup = pair_setup(open_session(root), lq="lq", hq="hq")
     opts = AlignOptions(probes=2, max_features=60, min_matches=12, loop=False, progress=False, workers=1,
                         on_unobservable="flag")

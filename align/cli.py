@@ -64,7 +64,7 @@ def _space_group(p: argparse.ArgumentParser) -> None:
                    help="drop pairs whose depth residual lies more than K robust sigmas above the median (default: %(default)g)")
     g.add_argument("--reference-edges", choices=tuple(RULES), default="footprint-fg",
                    help="the reference at depth edges: strict extends no surface past its last HQ sample and masks the "
-                        "far side of every reference edge (3 px, counted in aligned.json); mixed does the same and also "
+                        "far side of every reference edge (3 px; 2 px for the footprint rules; counted in aligned.json); mixed does the same and also "
                         "masks what the HQ's time-of-flight mixed pixels hide (fewer large errors, more pixels masked); "
                         "midpoint guesses the edge half way and masks nothing; strict-fg and mixed-fg mask as strict and "
                         "mixed but only where the reference is in front of the background, i.e. in the ROI; footprint-fg also masks "

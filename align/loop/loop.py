@@ -370,6 +370,14 @@ def _instants(model: FeatureModel, x: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return s, stamps
 
 
+def _robust_scale(residuals: np.ndarray, *, floor: float = 0.3) -> float:
+    """The Huber scale of a fit from its residuals: 2.5 robust sigmas (1.4826 MAD about 0) of the non-zero ones, at
+    least ``floor``; ``floor`` where none is non-zero (as few residuals as unknowns)."""
+    r = np.abs(residuals)
+    r = r[r != 0]
+    return float(max(floor, 2.5 * 1.4826 * np.median(r))) if r.size else floor
+
+
 def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, declared: dict | None = None,
                         options: LoopOptions | None = None, exclude: tuple[str, ...] = ()) -> FeatureLoop:
     """The feature phase of the loop (module docstring). ``declared``: the session's ``effects``
@@ -397,9 +405,7 @@ def fit_feature_effects(data: FeatureData, *, T: Transform, shift_us: float, dec
     c = o.scale_px or 1.5
     x = refit(model, x, _cols(model, []), c=c, max_nfev=o.max_nfev)
     if o.scale_px is None:
-        r = np.abs(model.residuals(x))
-        r = r[r != 0]
-        c = float(max(0.3, 2.5 * 1.4826 * np.median(r))) if r.size else 0.3  # none: as few features as unknowns
+        c = _robust_scale(model.residuals(x))
     x_base = x.copy()
     secs["base_fit"] = time.perf_counter() - t_start
     stages: list[StageRecord] = []

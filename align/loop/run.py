@@ -10,7 +10,11 @@
    photometrically refined tracks (``PairFit.refined_probes``, :func:`align.loop.loop.refit_on_tracks`),
    which carry less of the keypoints' own localisation error: on the detected tracks the final
    ``T_lq_hq`` is ~1 mm off in z, as the base fit was before its own refinement (session 9's ``extr``
-   notes); it falls back to the search's fit (warned) where the refinement kept too few features;
+   notes); it falls back to the search's fit (warned) where the refinement kept too few features. Not
+   where an effect was accepted with look-alikes (the data could not tell it from another, e.g. a small LQ
+   lens k1 from the HQ lens's): the refined tracks' smaller noise narrows its interval while the choice
+   between the two stays open (LQ k1 0.02, seeds 21-23: intervals covered 3 of 3 before this refit, 0 of 3
+   with it, the estimate +8..+11 % -> +13..+18 %; ``docs/worklog/2026-11-24-s12/recheck.md``);
 4. warps the HQ depth of ``depth_pairs`` pairs spread over the session with the extended
    geometry and samples pixels away from depth edges, then runs the depth phase;
 5. returns a :class:`LoopResult` that :meth:`LoopResult.apply` writes into the pair's fit
@@ -263,9 +267,11 @@ def _close_loop(setup, pf, *, options: LoopOptions | None, correct_depth: bool, 
     secs["features"] = time.perf_counter() - t1
     dup_colour = ff.duplicate_positions(f"{setup.lq}/{setup.lq_color}")
     found = any(f.source == "found" for f in fl.findings) or dup_colour.size > 0
-    refined_fit = ("not run: the model is the base fit's" if not found else "not run: no refined tracks" if refine
-                   else "not run: switched off")
-    if found and refine and pf.refined_probes is not None:
+    alike = sorted(f.name for f in fl.findings if f.source == "found" and f.extra.get("look_alikes"))
+    refined_fit = ("not run: the model is the base fit's" if not found else
+                   f"not run: {', '.join(alike)} accepted with look-alikes" if alike else
+                   "not run: no refined tracks" if refine else "not run: switched off")
+    if found and refine and not alike and pf.refined_probes is not None:
         t1 = time.perf_counter()
         fl, refined_fit = _refit_refined(setup, pf, fl, n_sift=len(fd), skip=dup_colour, options=o)
         secs["features.refined_refit"] = time.perf_counter() - t1

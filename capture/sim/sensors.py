@@ -69,6 +69,7 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
     fx = effects or SensorEffects()
     seeds = rng.integers(0, 2**63, size=2)
     hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)
+    footprint = _footprint(renderer, cams, t_s)  # a ray cast: the renderer counts its time
     with timings("noise"):
         if isinstance(spec.noise, StereoNoise):
             K = cams.depth.intrinsics
@@ -76,8 +77,7 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
                                  fx=K.fx, cx=K.cx, rng=rng)
         else:
             assert isinstance(spec.noise, TofNoise)
-            noisy = tof_depth(hits.z, hits.albedo_luminance, noise=spec.noise, rng=rng,
-                              footprint=_footprint(renderer, cams, t_s))
+            noisy = tof_depth(hits.z, hits.albedo_luminance, noise=spec.noise, rng=rng, footprint=footprint)
         depth = noisy.depth
         if fx.changes_depth:
             depth = (depth * np.float32(fx.depth_scale) + np.float32(fx.depth_offset_m)).astype(np.float32)

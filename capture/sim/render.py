@@ -217,15 +217,26 @@ class Renderer:
         return Hits(layer.z.reshape(H, W), layer.lum_albedo.reshape(H, W), layer.lum_shaded.reshape(H, W),
                     rgb8.reshape(H, W, 3))
 
-    def cast_depth(self, cam: CameraRays, t_s: float) -> np.ndarray:
+    def still_depth(self, cam: CameraRays) -> np.ndarray | None:
+        """The z-depth ``(H, W)`` float32 metres of ``cam``'s still layer (what it sees of the parts that never
+        move), or None where the renderer keeps no still layer."""
+        if not (self.reuse_still and self.scene.n_still_triangles > 0):
+            return None
+        return self._still_layer(cam).z.reshape(cam.intrinsics.shape)
+
+    def cast_depth(self, cam: CameraRays, t_s: float, *, within: np.ndarray | None = None) -> np.ndarray:
         """The z-depth ``(H, W)`` float32 metres (NaN = nothing) of ``cam``'s rays at ``t_s``: :meth:`cast`'s
-        ``z`` without the shading (the still layer is shaded once, as for :meth:`cast`)."""
+        ``z`` without the shading (the still layer is shaded once, as for :meth:`cast`). ``within``: ``(H, W)``
+        bool, the pixels a moving part may reach (the caller's bound); the others keep the still layer's depth.
+        None: every pixel the moving parts' bounding boxes cover, as :meth:`cast`."""
         K = cam.intrinsics
         rc = self._scene_at(t_s)
         if self.reuse_still and self.scene.n_still_triangles > 0:
             z = self._still_layer(cam).z.copy()
             idx = self.roi_indices(cam, t_s) if self.scene.n_still_triangles < len(self.scene.triangles) else \
                 np.zeros(0, np.int64)
+            if within is not None:
+                idx = idx[np.asarray(within, bool).reshape(-1)[idx]]
         else:
             z, idx = np.empty(K.width * K.height, np.float32), np.arange(K.width * K.height, dtype=np.int64)
         if idx.size:

@@ -9,6 +9,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from time import perf_counter
 
+import cv2
 import numpy as np
 
 from capture.sim.effects import ROLLING_SHUTTER_BAND_MS, SensorEffects
@@ -69,7 +70,7 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
     fx = effects or SensorEffects()
     seeds = rng.integers(0, 2**63, size=2)
     hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)
-    footprint = _footprint(renderer, cams, t_s)  # a ray cast: the renderer counts its time
+    footprint = _footprint(renderer, cams, t_s, hits.z)  # a ray cast: the renderer counts its time
     with timings("noise"):
         if isinstance(spec.noise, StereoNoise):
             K = cams.depth.intrinsics
@@ -92,12 +93,29 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
     return SensorFrame(depth, color, hits.z, noisy.invalid)
 
 
-def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float) -> np.ndarray | None:
-    """The depths over each depth pixel's footprint ``(H, W, n * n)``, or None (a point-sampled sensor)."""
+#: how far (depth pixels) from a pixel whose centre sees a moving part the footprint's rays are cast each frame
+FOOTPRINT_REACH_PX = 2
+
+
+def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float, z_centre: np.ndarray) -> np.ndarray | None:
+    """The depths over each depth pixel's footprint ``(H, W, n * n)``, or None (a point-sampled sensor).
+
+    The rays are cast again only within ``FOOTPRINT_REACH_PX`` of the pixels whose centre ray (``z_centre``) sees
+    something else than the still layer, i.e. a moving part: elsewhere no moving part reaches the footprint, and
+    its rays keep the still layer's depths (a part thinner than that reach that no centre ray meets would be
+    missed; ``tests/capture/test_sim_footprint.py`` checks the result equals the full cast on the simulator's
+    scenes)."""
     if cams.footprint is None:
         return None
-    return footprint_samples(renderer.cast_depth(cams.footprint, t_s),
-                             cams.footprint.intrinsics.width // cams.depth.intrinsics.width)
+    n = cams.footprint.intrinsics.width // cams.depth.intrinsics.width
+    still = renderer.still_depth(cams.depth)
+    within = None
+    if still is not None:
+        moving = ~((z_centre == still) | (np.isnan(z_centre) & np.isnan(still)))
+        k = 2 * FOOTPRINT_REACH_PX + 1
+        near = cv2.dilate(moving.astype(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
+        within = np.repeat(np.repeat(near, n, axis=0), n, axis=1)
+    return footprint_samples(renderer.cast_depth(cams.footprint, t_s, within=within), n)
 
 
 def rolling_shutter_color(renderer: Renderer, cam: CameraRays, t_s: float, readout_s: float, *, noise_seed: int,

@@ -103,3 +103,22 @@ def test_depth_only_cast_equals_the_shaded_cast():
     assert flat.sum() > 0.9 * seen.sum() and (span[seen] > 0.3).sum() > 100
     off = (np.abs(sub.mean(-1) - centre) / centre)[flat]  # 1.5e-3 (mean) with the rays half a fine step off
     assert off.mean() < 1e-4 and np.quantile(off, 0.9) < 1e-4
+
+
+@pytest.mark.parametrize("scene_name, scale", [("people", 0.5), ("people", 1.0), ("balloons", 0.5)])
+def test_footprint_cast_near_the_moving_parts_equals_the_full_cast(scene_name, scale):
+    """The footprint's rays are cast again only near the pixels whose centre sees a moving part; on the simulator's
+    scenes that gives exactly the footprint of every ray cast again (the moving parts' whole bounding boxes)."""
+    from capture.sim.sensors import SensorCameras, _footprint
+
+    scene, rig = build_scene(scene_name, seed=3), build_rig("lq-hq", scale=scale)
+    hq = rig.sensor("hq")
+    cams = SensorCameras.of(hq)
+    r = Renderer(scene, nthreads=1)
+    n = hq.noise.footprint_samples
+    for t in (0.2, 1.1, 2.4):
+        centre = r.cast(cams.depth, t).z
+        got = _footprint(r, cams, t, centre)
+        full = footprint_samples(r.cast_depth(cams.footprint, t), n)
+        assert np.array_equal(got, full, equal_nan=True)
+        assert r.last_cast_pixels > 0  # the moving parts are in view

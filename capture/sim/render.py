@@ -77,32 +77,35 @@ def footprint_samples(z_fine: np.ndarray, n: int) -> np.ndarray:
 @dataclass
 class Hits:
     """What one camera sees, all ``(H, W)``: ``z`` float32 metres (NaN = nothing), the
-    luminance of the surface albedo and of the shaded colour (float32, [0, 1]), and the colour
-    image ``rgb`` ``(H, W, 3)`` uint8 with sensor noise."""
+    luminance of the surface albedo and of the shaded colour (float32, [0, 1]), the colour
+    image ``rgb`` ``(H, W, 3)`` uint8 with sensor noise, and ``part`` int32, the scene part each
+    ray met (:attr:`capture.sim.scene.Scene.triangle_part`; -1 = nothing)."""
 
     z: np.ndarray
     albedo_luminance: np.ndarray
     shaded_luminance: np.ndarray
     rgb: np.ndarray
+    part: np.ndarray | None = None
 
 
 @dataclass
 class _Layer:
-    """Per-pixel shading buffers of one camera, flat: z, luminances (N,), colour (N, 3)."""
+    """Per-pixel shading buffers of one camera, flat: z, luminances (N,), colour (N, 3), part (N,)."""
 
     z: np.ndarray
     lum_albedo: np.ndarray
     lum_shaded: np.ndarray
     rgb: np.ndarray
+    part: np.ndarray
     cast_pixels: int = field(default=0)
 
     @classmethod
     def empty(cls, n: int) -> "_Layer":
         return cls(np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.float32),
-                   np.empty((n, 3), np.float32))
+                   np.empty((n, 3), np.float32), np.full(n, -1, np.int32))
 
     def copy(self) -> "_Layer":
-        return _Layer(self.z.copy(), self.lum_albedo.copy(), self.lum_shaded.copy(), self.rgb.copy())
+        return _Layer(self.z.copy(), self.lum_albedo.copy(), self.lum_shaded.copy(), self.rgb.copy(), self.part.copy())
 
 
 class Renderer:
@@ -151,6 +154,8 @@ class Renderer:
         shade_hits(ans["t_hit"], ans["primitive_ids"], ans["primitive_uvs"], self.hit_normals(ans, normals), idx,
                    scene.triangles, scene.rest_vertices, scene.triangle_material, self._params, self._tint,
                    np.float32(BACKGROUND_RGB), layer.z, layer.lum_albedo, layer.lum_shaded, layer.rgb)
+        hit = np.isfinite(ans["t_hit"])
+        layer.part[idx] = np.where(hit, scene.triangle_part[np.where(hit, ans["primitive_ids"], 0)], -1)
         self.stage_s["raycast"] += t1 - t0
         self.stage_s["shade"] += time.perf_counter() - t1
 
@@ -215,7 +220,7 @@ class Renderer:
         self.stage_s["shade"] += time.perf_counter() - t0
         H, W = K.shape
         return Hits(layer.z.reshape(H, W), layer.lum_albedo.reshape(H, W), layer.lum_shaded.reshape(H, W),
-                    rgb8.reshape(H, W, 3))
+                    rgb8.reshape(H, W, 3), layer.part.reshape(H, W))
 
     def still_depth(self, cam: CameraRays) -> np.ndarray | None:
         """The z-depth ``(H, W)`` float32 metres of ``cam``'s still layer (what it sees of the parts that never

@@ -93,6 +93,8 @@ class Scene:
         self.triangle_material = np.concatenate(
             [np.full(len(p.triangles), p.material, dtype=np.int32) for p in parts])
         self.triangle_smooth = np.concatenate([np.full(len(p.triangles), p.smooth) for p in parts])
+        #: the part (index into the flattened parts) each triangle belongs to
+        self.triangle_part = np.repeat(np.arange(len(parts), dtype=np.int32), [len(p.triangles) for p in parts])
         self.rest_normals = np.concatenate([vertex_normals(p.vertices, p.triangles) if p.smooth
                                             else np.zeros_like(p.vertices) for p in parts]).astype(np.float32)
         still = [a for a in self.actors if not a.moving or self.static]

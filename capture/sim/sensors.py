@@ -70,7 +70,8 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
     fx = effects or SensorEffects()
     seeds = rng.integers(0, 2**63, size=2)
     hits = renderer.cast(cams.depth, t_s, noise_seed=int(seeds[0]), noise_dn=spec.color_noise_dn)
-    footprint = _footprint(renderer, cams, t_s, hits.z)  # a ray cast: the renderer counts its time
+    # a ray cast (the renderer counts its time)
+    footprint = _footprint(renderer, cams, t_s, hits, jump_m=getattr(spec.noise, "flying_jump_m", 0.0))
     with timings("noise"):
         if isinstance(spec.noise, StereoNoise):
             K = cams.depth.intrinsics
@@ -97,25 +98,36 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
 FOOTPRINT_REACH_PX = 2
 
 
-def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float, z_centre: np.ndarray) -> np.ndarray | None:
+def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float, hits, *, jump_m: float) -> np.ndarray | None:
     """The depths over each depth pixel's footprint ``(H, W, n * n)``, or None (a point-sampled sensor).
 
-    The rays are cast again only within ``FOOTPRINT_REACH_PX`` of the pixels whose centre ray (``z_centre``) sees
-    something else than the still layer, i.e. a moving part: elsewhere no moving part reaches the footprint, and
-    its rays keep the still layer's depths (a part thinner than that reach that no centre ray meets would be
-    missed; ``tests/capture/test_sim_footprint.py`` checks the result equals the full cast on the simulator's
-    scenes)."""
+    The rays are cast again only where a footprint can both meet a moving part and span more than ``jump_m``
+    (the time-of-flight model's flying-pixel jump; elsewhere the model reads the centre's depth whatever the
+    footprint holds): within ``FOOTPRINT_REACH_PX`` of a pixel whose centre ray sees something else than the still
+    layer (a moving part), and within one pixel of a pixel whose 3x3 centre rays meet more than one scene part, or
+    nothing, or span more than half of ``jump_m``. Outside the first the rays keep the still layer's depths; outside
+    the second, inside the moving parts, they take the centre's depth. The simulator's parts are convex and
+    thicker than a pixel, so a footprint inside one part's 3x3 centre rays sees that part alone;
+    ``tests/capture/test_sim_footprint.py`` checks the result equals the full cast's on the simulator's scenes."""
     if cams.footprint is None:
         return None
     n = cams.footprint.intrinsics.width // cams.depth.intrinsics.width
     still = renderer.still_depth(cams.depth)
-    within = None
-    if still is not None:
-        moving = ~((z_centre == still) | (np.isnan(z_centre) & np.isnan(still)))
-        k = 2 * FOOTPRINT_REACH_PX + 1
-        near = cv2.dilate(moving.astype(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
-        within = np.repeat(np.repeat(near, n, axis=0), n, axis=1)
-    return footprint_samples(renderer.cast_depth(cams.footprint, t_s, within=within), n)
+    if still is None or hits.part is None:
+        return footprint_samples(renderer.cast_depth(cams.footprint, t_s), n)
+    z = hits.z
+    moving = ~((z == still) | (np.isnan(z) & np.isnan(still)))
+    reach = cv2.dilate(moving.astype(np.uint8), np.ones((2 * FOOTPRINT_REACH_PX + 1,) * 2, np.uint8)).astype(bool)
+    k = np.ones((3, 3), np.uint8)
+    zf = np.where(np.isfinite(z), z, np.float32(1e3)).astype(np.float32)  # nothing: a jump to 1 km
+    part = hits.part.astype(np.float32)
+    edge = (cv2.dilate(zf, k) - cv2.erode(zf, k) > 0.5 * jump_m) | (cv2.dilate(part, k) != cv2.erode(part, k))
+    cast = reach & cv2.dilate(edge.astype(np.uint8), k).astype(bool)
+    fine = renderer.cast_depth(cams.footprint, t_s, within=np.repeat(np.repeat(cast, n, axis=0), n, axis=1))
+    out = footprint_samples(fine, n)
+    inside = reach & ~cast  # a moving part's interior: one surface, the centre's depth
+    out[inside] = z[inside][:, None]
+    return out
 
 
 def rolling_shutter_color(renderer: Renderer, cam: CameraRays, t_s: float, readout_s: float, *, noise_seed: int,

@@ -106,9 +106,10 @@ def test_depth_only_cast_equals_the_shaded_cast():
 
 
 @pytest.mark.parametrize("scene_name, scale", [("people", 0.5), ("people", 1.0), ("balloons", 0.5)])
-def test_footprint_cast_near_the_moving_parts_equals_the_full_cast(scene_name, scale):
-    """The footprint's rays are cast again only near the pixels whose centre sees a moving part; on the simulator's
-    scenes that gives exactly the footprint of every ray cast again (the moving parts' whole bounding boxes)."""
+def test_footprint_cast_near_part_edges_gives_the_full_casts_depth(scene_name, scale):
+    """The footprint's rays are cast again only where a footprint can meet a moving part and span a jump; on the
+    simulator's scenes the time-of-flight depth is exactly that of every ray cast again (the moving parts' whole
+    bounding boxes), and the footprint equals the full cast's wherever its rays were cast."""
     from capture.sim.sensors import SensorCameras, _footprint
 
     scene, rig = build_scene(scene_name, seed=3), build_rig("lq-hq", scale=scale)
@@ -117,8 +118,13 @@ def test_footprint_cast_near_the_moving_parts_equals_the_full_cast(scene_name, s
     r = Renderer(scene, nthreads=1)
     n = hq.noise.footprint_samples
     for t in (0.2, 1.1, 2.4):
-        centre = r.cast(cams.depth, t).z
-        got = _footprint(r, cams, t, centre)
+        hits = r.cast(cams.depth, t)
+        got = _footprint(r, cams, t, hits, jump_m=hq.noise.flying_jump_m)
         full = footprint_samples(r.cast_depth(cams.footprint, t), n)
-        assert np.array_equal(got, full, equal_nan=True)
-        assert r.last_cast_pixels > 0  # the moving parts are in view
+        a, b = (tof_depth(hits.z, hits.albedo_luminance, noise=hq.noise, rng=np.random.default_rng(5), footprint=f)
+                for f in (got, full))
+        assert np.array_equal(a.depth, b.depth, equal_nan=True)
+        assert np.array_equal(a.invalid["flying"], b.invalid["flying"])
+        same = np.all((got == full) | (np.isnan(got) & np.isnan(full)), axis=-1)
+        assert b.invalid["flying"][~same].sum() == 0  # every flying pixel's footprint was cast
+    assert r.last_cast_pixels > 0  # the moving parts are in view

@@ -14,7 +14,7 @@ import numpy as np
 
 from capture.sim.effects import ROLLING_SHUTTER_BAND_MS, SensorEffects
 from capture.sim.noise import StereoNoise, TofNoise, stereo_depth, tof_depth
-from capture.sim.render import CameraRays, Renderer, camera_rays, footprint_rays, footprint_samples
+from capture.sim.render import CameraRays, Hits, Renderer, camera_rays, footprint_rays, footprint_samples
 from capture.sim.rigs import SensorSpec
 
 
@@ -98,7 +98,7 @@ def render_frame(spec: SensorSpec, cams: SensorCameras, renderer: Renderer, t_s:
 FOOTPRINT_REACH_PX = 2
 
 
-def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float, hits, *, jump_m: float) -> np.ndarray | None:
+def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float, hits: Hits, *, jump_m: float) -> np.ndarray | None:
     """The depths over each depth pixel's footprint ``(H, W, n * n)``, or None (a point-sampled sensor).
 
     The rays are cast again only where a footprint can both meet a moving part and span more than ``jump_m``

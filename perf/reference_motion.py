@@ -146,7 +146,8 @@ def main() -> None:
                     help=f"LQ frames per session (default: %(default)s; under {MIN_SCORED_FRAMES}: throughput only)")
     ap.add_argument("--speed-frames", type=int, default=40, help="pairs for the throughput (default: %(default)s)")
     ap.add_argument("--edges", choices=("strict", "midpoint"), default="strict",
-                    help="the reference's edge rule, align.reference_edges (default: %(default)s, as align)")
+                    help="the reference's edge rule, align.reference_edges (default: %(default)s; align's default, "
+                         "footprint-fg, needs align's own references: docs/worklog/2026-11-24-s12/recheck.md scores it)")
     ap.add_argument("--flow-stride", type=int, default=None,
                     help="scene flow found for every N-th HQ sample (align.motion_flow.SceneFlow; default: its own)")
     args = ap.parse_args()

@@ -519,7 +519,7 @@ def refit_on_tracks(fl: FeatureLoop, data: FeatureData, *, max_nfev: int = 30, m
     r = model.residuals(fl.x)
     if not np.any(r != 0):
         return None, "no refined feature inside its window"
-    c = float(max(0.1, 2.5 * 1.4826 * np.median(np.abs(r[r != 0]))))
+    c = _robust_scale(r, floor=0.1)
     x = refit(model, fl.x, free, c=c, max_nfev=max_nfev)
     lo, hi = _ranges(model)
     tol = AT_BOUND * np.where(np.isfinite(hi - lo), hi - lo, np.inf)

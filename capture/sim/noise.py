@@ -433,6 +433,26 @@ def _footprint_depth_compiled(footprint: np.ndarray, *, mix: str) -> tuple[np.nd
     return z, near, far
 
 
+def _point_mix(zf, valid, u_flying, u_weight, *, noise: TofNoise, far: np.float32):
+    """The point-sampled model's flying pixels (a ``flying_fraction`` of the pixels of 3x3 jumps, drawn by
+    ``u_flying``) and their mixes (weights from ``u_weight``): ``(flying, z_near, z_far, depth)``, each ``(H, W)``."""
+    k = np.ones((3, 3), np.uint8)
+    z_near, z_far = cv2.erode(zf, k), cv2.dilate(zf, k)
+    flying = valid & (z_far - z_near > noise.flying_jump_m) & (u_flying < noise.flying_fraction)
+    z_far = np.minimum(z_far, far / 2)
+    w = flying_weight(zf, z_near, z_far, u_weight, mix=noise.flying_mix)
+    return flying, z_near, z_far, np.where(flying, w * z_near + (1 - w) * z_far, zf)
+
+
+def _footprint_mix(zf, valid, footprint: np.ndarray, u_weight, *, noise: TofNoise):
+    """The footprint model's flying pixels (every footprint whose depths span a jump) and their depth (module
+    docstring; ``"uniform"`` weighs by ``u_weight``): ``(flying, z_near, z_far, depth)``, each ``(H, W)``."""
+    z_sum, z_near, z_far = _footprint_depth_compiled(footprint, mix=noise.flying_mix)
+    flying = valid & (z_far - z_near > noise.flying_jump_m)
+    z = u_weight * z_near + (1 - u_weight) * z_far if noise.flying_mix == "uniform" else z_sum
+    return flying, z_near, z_far, np.where(flying, z, zf)
+
+
 def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: np.random.Generator,
               footprint: np.ndarray | None = None) -> NoisyDepth:
     """Simulate a time-of-flight depth image.
@@ -448,17 +468,12 @@ def tof_depth(z_true: np.ndarray, albedo: np.ndarray, *, noise: TofNoise, rng: n
     valid = np.isfinite(z_true)
     far = np.float32(noise.max_depth_m * 2)
     zf = np.where(valid, z_true, far).astype(np.float32)
-    k = np.ones((3, 3), np.uint8)
-    z_near, z_far = cv2.erode(zf, k), cv2.dilate(zf, k)
-    flying = valid & (z_far - z_near > noise.flying_jump_m) & (rng.random(z_true.shape) < noise.flying_fraction)
-    z_far = np.minimum(z_far, far / 2)
-    w = flying_weight(zf, z_near, z_far, rng.random(z_true.shape, dtype=np.float32), mix=noise.flying_mix)
+    # both models draw the same two fields, so the rest of a session's noise does not depend on the model
+    u_flying, u_weight = rng.random(z_true.shape), rng.random(z_true.shape, dtype=np.float32)
     if footprint is None:
-        z_mixed = np.where(flying, w * z_near + (1 - w) * z_far, zf)
+        flying, z_near, z_far, z_mixed = _point_mix(zf, valid, u_flying, u_weight, noise=noise, far=far)
     else:
-        z_sum, z_near, z_far = _footprint_depth_compiled(footprint, mix=noise.flying_mix)
-        flying = valid & (z_far - z_near > noise.flying_jump_m)
-        z_mixed = np.where(flying, w * z_near + (1 - w) * z_far if noise.flying_mix == "uniform" else z_sum, zf)
+        flying, z_near, z_far, z_mixed = _footprint_mix(zf, valid, footprint, u_weight, noise=noise)
     sigma = noise.sigma_z(z_mixed).astype(np.float32)
     n = correlated_normal(z_true.shape, noise.correlation_px, rng) if noise.correlation_px else \
         rng.standard_normal(z_true.shape, dtype=np.float32)

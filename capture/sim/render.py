@@ -205,10 +205,9 @@ class Renderer:
         K = cam.intrinsics
         n = K.width * K.height
         rc = self._scene_at(t_s)
-        if self.reuse_still and self.scene.n_still_triangles > 0:
+        idx = self._recast_indices(cam, t_s)
+        if idx is not None:
             layer = self._still_layer(cam).copy()
-            idx = self.roi_indices(cam, t_s) if self.scene.n_still_triangles < len(self.scene.triangles) else \
-                np.zeros(0, np.int64)
         else:
             layer, idx = _Layer.empty(n), np.arange(n, dtype=np.int64)
         if idx.size:
@@ -222,12 +221,24 @@ class Renderer:
         return Hits(layer.z.reshape(H, W), layer.lum_albedo.reshape(H, W), layer.lum_shaded.reshape(H, W),
                     rgb8.reshape(H, W, 3), layer.part.reshape(H, W))
 
+    @property
+    def _keeps_still(self) -> bool:
+        """Whether casts start from a still layer (:meth:`_still_layer`) and recast only what can move."""
+        return self.reuse_still and self.scene.n_still_triangles > 0
+
+    def _recast_indices(self, cam: CameraRays, t_s: float) -> np.ndarray | None:
+        """Flat indices of ``cam``'s pixels to cast again over its still layer at ``t_s`` (none in a scene where
+        nothing moves); None where the renderer keeps no still layer and casts every pixel."""
+        if not self._keeps_still:
+            return None
+        if self.scene.n_still_triangles == len(self.scene.triangles):
+            return np.zeros(0, np.int64)
+        return self.roi_indices(cam, t_s)
+
     def still_depth(self, cam: CameraRays) -> np.ndarray | None:
         """The z-depth ``(H, W)`` float32 metres of ``cam``'s still layer (what it sees of the parts that never
         move), or None where the renderer keeps no still layer."""
-        if not (self.reuse_still and self.scene.n_still_triangles > 0):
-            return None
-        return self._still_layer(cam).z.reshape(cam.intrinsics.shape)
+        return self._still_layer(cam).z.reshape(cam.intrinsics.shape) if self._keeps_still else None
 
     def cast_depth(self, cam: CameraRays, t_s: float, *, within: np.ndarray | None = None) -> np.ndarray:
         """The z-depth ``(H, W)`` float32 metres (NaN = nothing) of ``cam``'s rays at ``t_s``: :meth:`cast`'s
@@ -236,10 +247,9 @@ class Renderer:
         None: every pixel the moving parts' bounding boxes cover, as :meth:`cast`."""
         K = cam.intrinsics
         rc = self._scene_at(t_s)
-        if self.reuse_still and self.scene.n_still_triangles > 0:
+        idx = self._recast_indices(cam, t_s)
+        if idx is not None:
             z = self._still_layer(cam).z.copy()
-            idx = self.roi_indices(cam, t_s) if self.scene.n_still_triangles < len(self.scene.triangles) else \
-                np.zeros(0, np.int64)
             if within is not None:
                 idx = idx[np.asarray(within, bool).reshape(-1)[idx]]
         else:

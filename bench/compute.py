@@ -24,13 +24,17 @@ import pandas as pd
 
 from align.dataset import AlignedDataset, AlignedFrame
 from bench.errors import BenchError
-from bench.masks import truth_strata
+from bench.masks import interior_strata, truth_strata
 from bench.metrics import BINNED, UNITS, MetricConfig, fit_reference_planes, frame_metrics, moving_mask
 from bench.results import SCHEMA_VERSION
 from methods.base import FrameInput, MethodNeeds
 from methods.run import DenoisedFrame, FrameRunner, read_input
 
 log = logging.getLogger(__name__)
+
+#: the references the HQ sensor is scored against: the truth on the HQ reference's pixels, and away from its depth
+#: edges (:mod:`bench.masks`)
+HQ_SENSOR_REFERENCES = ("truth", "truth_interior")
 
 
 class HQSensor:
@@ -152,6 +156,7 @@ class _TaskScorer:
         refs = {"hq": fr.reference}
         if fr.truth is not None:   # the truth on the reference's pixels, and on the ROI pixels without one
             refs.update(truth_strata(fr.truth, fr.reference))
+        refs.update(interior_strata(fr.reference, fr.truth))   # both away from the reference's depth edges
         planes = {name: fit_reference_planes(ref, self.K, roi=fr.roi, radius_m=cfg.radius_m,
                                              min_neighbors=cfg.min_neighbors, min_spread_ratio=cfg.min_spread_ratio,
                                              threads=self.threads)
@@ -220,7 +225,7 @@ def compute_frame(task: FrameTask) -> FrameOutput:
             sensors = hq_sensor if fr.truth is not None else []   # the reference itself, against the truth
             held = scorer.hold(fr, waiting=len(methods) + len(sensors))
             for m in sensors:
-                scorer.score(m, i, fr.reference, refs={"truth": held.refs["truth"]})
+                scorer.score(m, i, fr.reference, refs={k: held.refs[k] for k in HQ_SENSOR_REFERENCES})
             frame = FrameInput(index=i, depth=fr.lq_depth, color=fr.lq_color, camera=ds.lq_intrinsics)
             for m in methods:
                 _score_all(scorer, m, runners[m.key].push(frame))

@@ -30,7 +30,8 @@ from data_manifests import schema_problem
 from depthbench.fsutil import atomic_output, atomic_write_json, read_json, sha256_file
 
 FORMAT = "depthbench.results"
-SCHEMA_VERSION = 2   # 2: "truth" scored on the reference's pixels, "truth_noref" the rest of the ROI
+SCHEMA_VERSION = 3   # 2: "truth" scored on the reference's pixels, "truth_noref" the rest of the ROI;
+#                      3: "hq_interior" and "truth_interior", away from the reference's depth edges
 MANIFEST = "results.json"
 TABLE = "results.parquet"
 CACHE = "cache"
@@ -47,7 +48,8 @@ SCHEMA = pa.schema([
     ("sequence", pa.string()),          # sequence name for per-sequence tables
     ("frame", pa.int64()),              # frame index in the aligned dataset
     ("reference", pa.string()),         # "hq" (warped HQ depth), "truth" (simulated noise-free depth on the
-                                        # hq reference's pixels) or "truth_noref" (on the ROI pixels without one)
+                                        # hq reference's pixels), "truth_noref" (on the ROI pixels without one),
+                                        # "hq_interior" / "truth_interior" (hq's pixels away from its depth edges)
     ("metric", pa.string()),            # see bench.metrics.UNITS
     ("unit", pa.string()),              # mm, mm^2, ratio, count, deg
     ("bin_lo_m", pa.float64()),         # reference-depth bin [lo, hi) in metres; NaN: the whole frame

@@ -31,7 +31,10 @@ Does the reference rank the methods as the truth does?
     :func:`ranking_check` orders the methods by their mean against the HQ reference and against the truth on
     the same pixels (MSE and RMSE, :data:`RANKING_METRICS`) and gives every pair's per-frame difference with a
     paired bootstrap interval in each scoring; a pair is decided *wrongly* by the reference when the two
-    differences have opposite signs and both intervals are clear of zero (:func:`decided_wrongly`).
+    differences have opposite signs and both intervals are clear of zero (:func:`decided_wrongly`). It checks
+    all the reference's pixels or those away from its depth edges (:data:`RANKING_STRATA`); the second is the
+    order the leaderboard gives as its ranking (at the reference's depth edges its error and a CNN's are
+    correlated: :mod:`bench.masks`).
 """
 from __future__ import annotations
 
@@ -62,6 +65,8 @@ HQ_SENSOR = "hq_sensor"
 NOREF = "truth_noref"
 #: the metrics the ranking check compares the two scorings on (key -> short name)
 RANKING_METRICS = {"mse_mm2": "MSE", "rmse_mm": "RMSE"}
+#: the strata of :func:`ranking_check`: name -> (reference, truth) names of the results table
+RANKING_STRATA = {"all": ("hq", "truth"), "interior": ("hq_interior", "truth_interior")}
 
 
 # ----------------------------------------------------------------------------------- columns
@@ -207,21 +212,50 @@ def noref_share(df: pd.DataFrame) -> pd.Series:
         return (w[NOREF] / (w["truth"] + w[NOREF])).sort_index()
 
 
-def ranking_check(df: pd.DataFrame, *, n_boot: int = 2000, seed: int = 0) -> dict:
+def edge_share(df: pd.DataFrame) -> pd.Series:
+    """Per frame (index ``(dataset_checksum, frame)``): the share of the HQ reference's pixels that lie at its
+    depth edges, ``1 - n_reference(hq_interior) / n_reference(hq)`` (:func:`bench.masks.interior_strata`; the first
+    method key's rows).
+
+    >>> df = pd.DataFrame({"reference": ["hq", "hq_interior"], "bin_lo_m": np.nan, "metric": "n_reference",
+    ...                    "method": "raw", "method_key": "raw@1", "dataset_checksum": "c", "frame": 0,
+    ...                    "value": [80.0, 60.0]})
+    >>> edge_share(df).tolist()
+    [0.25]
+    """
+    rows = df[df["reference"].isin(["hq", "hq_interior"]) & df["bin_lo_m"].isna() & (df["metric"] == "n_reference")]
+    if rows.empty:
+        return pd.Series(dtype=np.float64)
+    first = sorted(rows["method_key"].unique())[0]
+    v = rows[rows["method_key"] == first].set_index(["dataset_checksum", "frame", "reference"])["value"]
+    w = v[~v.index.duplicated()].unstack("reference").reindex(columns=["hq", "hq_interior"])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (1 - w["hq_interior"] / w["hq"]).sort_index()
+
+
+def ranking_check(df: pd.DataFrame, *, stratum: str = "all", n_boot: int = 2000, seed: int = 0) -> dict:
     """Does the HQ reference rank the methods as the truth does on the same pixels?
 
     On the frames with truth, per metric of :data:`RANKING_METRICS`: the methods (not the HQ sensor) ordered by
-    their mean over frames against the HQ reference (``"hq"``) and against the truth on the reference's pixels
+    their mean over frames against the HQ reference (scoring ``"hq"``) and against the truth on the same pixels
     (``"truth"``), whether the two orders are equal, and for every pair ``(a, b)`` the per-frame difference
-    ``a - b`` (mean and 95 % paired bootstrap interval over frames) in each scoring and against the truth on the
-    pixels without a reference (``"truth_noref"``). ``"wrong"`` lists the pairs the reference decides against the
-    truth: opposite signs, both intervals clear of zero. Returns ``{metric: {"order": {scoring:
+    ``a - b`` (mean and 95 % paired bootstrap interval over frames) in each scoring, and with ``stratum`` ``"all"``
+    against the truth on the pixels without a reference (``"truth_noref"``). ``"wrong"`` lists the pairs the
+    reference decides against the truth: opposite signs, both intervals clear of zero.
+
+    ``stratum`` (:data:`RANKING_STRATA`): ``"all"`` scores all the reference's pixels (references ``"hq"`` and
+    ``"truth"`` of the table), ``"interior"`` those away from its depth edges (``"hq_interior"``,
+    ``"truth_interior"``; :func:`bench.masks.interior_strata`). Returns ``{metric: {"order": {scoring:
     [key, ...]}, "same": bool, "pairs": [(a, b, {scoring: (mean, lo, hi)})], "wrong": [(a, b)]}}``; empty
-    without truth rows."""
-    keys = [k for k in method_labels(df[df["reference"] == "truth"]) if k in set(df.loc[df["reference"] == "hq", "method_key"])]
+    without truth rows of that stratum."""
+    hq_ref, truth_ref = RANKING_STRATA[stratum]
+    keys = [k for k in method_labels(df[df["reference"] == truth_ref])
+            if k in set(df.loc[df["reference"] == hq_ref, "method_key"])]
     if len(keys) < 2:
         return {}
-    wides = {ref: frame_values(df, ref) for ref in ("hq", "truth", NOREF)}
+    wides = {"hq": frame_values(df, hq_ref), "truth": frame_values(df, truth_ref)}
+    if stratum == "all":
+        wides[NOREF] = frame_values(df, NOREF)
     frames = wides["truth"].index
     out = {}
     for metric in RANKING_METRICS:

@@ -48,7 +48,7 @@ def test_bench_run_on_the_imported_ddrnet_pair(real_data, tmp_path, cli):
     assert "4 results computed, 0 reused" in r.stdout
     t = R.load_results(tmp_path / "res")
     assert set(t["method"]) == {"raw", "bilateral"} and set(t["dataset"]) == {"ddrnet_person/group2"}
-    assert set(t["reference"]) == {"hq"}                     # real data: no truth
+    assert set(t["reference"]) == {"hq", "hq_interior"}      # real data: no truth
     hq = t[(t["reference"] == "hq") & t["bin_lo_m"].isna()].pivot_table(index="metric", columns="method",
                                                                          values="value", aggfunc="mean")
     assert 0 < hq.loc["rmse_mm", "raw"] < 50 and hq.loc["fill_rate", "raw"] > 0.9

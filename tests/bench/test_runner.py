@@ -45,9 +45,9 @@ def test_table_has_one_row_per_method_dataset_frame_reference_metric(datasets, t
     t = res.table
     assert tuple(t.columns) == R.COLUMNS
     assert set(t["dataset"]) == {"A", "B"} and set(t["sequence"]) == {"seq-a", "seq-b"}
-    assert set(t["reference"]) == {"hq", "truth", "truth_noref"}
-    assert set(t.loc[t["dataset"] == "B", "reference"]) == {"hq"}     # no truth in B
-    assert set(t.loc[t["method"] == "hq_sensor", "reference"]) == {"truth"}
+    assert set(t["reference"]) == {"hq", "truth", "truth_noref", "hq_interior", "truth_interior"}
+    assert set(t.loc[t["dataset"] == "B", "reference"]) == {"hq", "hq_interior"}     # no truth in B
+    assert set(t.loc[t["method"] == "hq_sensor", "reference"]) == {"truth", "truth_interior"}
     frame_rows = t[t["bin_lo_m"].isna()]
     assert not frame_rows.duplicated(["method_key", "dataset", "frame", "reference", "metric"]).any()
     assert (t["schema_version"] == R.SCHEMA_VERSION).all()

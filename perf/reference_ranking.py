@@ -4,16 +4,18 @@ Run:  .venv/bin/python perf/reference_ranking.py ALIGNED [--methods raw,bf,rgf] 
 
 ALIGNED is an aligned dataset of a simulated session (with its ``truth_depth`` layer, e.g. the
 demo's ``aligned/``). Each method runs on the LQ frames and is scored, per frame and inside the
-dataset's ROI as ``bench run`` scores it (:func:`bench.metrics.pixel_errors`), three ways:
+dataset's ROI as ``bench run`` scores it (:func:`bench.metrics.pixel_errors`), six ways:
 
 * against the HQ reference (the leaderboard's first table);
 * against the truth (its second table);
 * against the truth **on the reference's pixels only** (pixels where the reference has depth);
 * against the truth on the ROI pixels **without** a reference (the ROI takes the LQ depth there:
-  HQ sensor holes, the gap past a surface's last HQ sample, occlusion shadows, the edge rule's mask).
+  HQ sensor holes, the gap past a surface's last HQ sample, occlusion shadows, the edge rule's mask);
+* against the reference and against the truth on the reference's pixels **away from its own depth edges**
+  (:func:`bench.masks.interior_strata`: the order the leaderboard ranks by since session 13).
 
 For every pair of methods it prints the mean over frames of the per-frame difference in MSE and
-RMSE, with a 95 % bootstrap interval over frames (2000 resamples), in each of the four scorings.
+RMSE, with a 95 % bootstrap interval over frames (2000 resamples), in each of the six scorings.
 Where the reference and the truth disagree on a pair's order but the truth on the reference's pixels
 agrees with the reference, the reference's values are not to blame: the pixels it leaves out (edges,
 where the HQ sensor cannot say which surface is there) are where the two methods differ. Issue 12's
@@ -35,10 +37,12 @@ import itertools
 import numpy as np
 
 from align.dataset import AlignedDataset
+from bench.masks import interior_strata
 from bench.metrics import pixel_errors
 from methods.registry import get
 
-SCORINGS = ("reference", "truth", "truth on reference pixels", "truth on pixels without reference")
+SCORINGS = ("reference", "truth", "truth on reference pixels", "truth on pixels without reference",
+            "reference away from its edges", "truth away from reference edges")
 
 
 def _scores(ds: AlignedDataset, methods: list[str], frames: list[int]) -> dict:
@@ -51,6 +55,9 @@ def _scores(ds: AlignedDataset, methods: list[str], frames: list[int]) -> dict:
         refs = {"reference": f.reference, "truth": f.truth,
                 "truth on reference pixels": np.where(has, f.truth, np.float32(np.nan)),
                 "truth on pixels without reference": np.where(has, np.float32(np.nan), f.truth)}
+        inner = interior_strata(f.reference, f.truth)
+        refs.update({"reference away from its edges": inner["hq_interior"],
+                     "truth away from reference edges": inner["truth_interior"]})
         for m, r in runners.items():
             pred = r.denoise(f.lq_depth, f.lq_color, camera=ds.lq_intrinsics)
             for s, ref in refs.items():
@@ -83,8 +90,10 @@ def main() -> None:
     for k, metric in enumerate(("MSE", "RMSE")):
         order = {s: sorted(methods, key=lambda m: np.nanmean(sc[m][s][:, k])) for s in SCORINGS}
         same = order["reference"] == order["truth"]
+        inner = order["reference away from its edges"] == order["truth away from reference edges"]
         print(f"  order by {metric:4s}: " + " | ".join(f"{s}: {' < '.join(o)}" for s, o in order.items())
-              + f"  -> reference ranks as the truth: {'yes' if same else 'NO'}")
+              + f"  -> reference ranks as the truth: {'yes' if same else 'NO'}; away from its edges: "
+              f"{'yes' if inner else 'NO'}")
     rng = np.random.default_rng(0)
     print("paired differences, mean over frames [95 % bootstrap]; order: '<' first method better")
     for a, b in itertools.combinations(methods, 2):

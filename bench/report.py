@@ -29,6 +29,7 @@ import pandas as pd
 
 from bench import plots
 from bench import results as R
+from bench.masks import EDGE_FILL_PX, EDGE_REL, EDGE_WIDTH_PX
 from bench.summary import (MIN_BIN_SHARE, NOREF, RANKING_METRICS, RANKING_STRATA, TABLE_I, bootstrap_summary,
                            depth_curves, edge_share, frame_values, method_labels, noref_share, ranking_check,
                            table_i_slot)
@@ -211,8 +212,8 @@ INTERIOR_NOTE = (
     "integrates its footprint; the warp interpolates), and so do the outputs of methods that regress across the edge "
     "(a CNN's): there the reference's error and theirs are correlated, and the reference favours them. Away from its "
     "depth edges it does not. Which pixels those are is decided by the reference alone (`bench.masks.depth_edge_mask`: "
-    "within 1 px of a jump of over 3 % in its 3 x 3 neighbourhood, its holes filled from their farthest neighbour), "
-    "so real captures have them too.")
+    f"within {EDGE_WIDTH_PX:g} px of a jump of over {100 * EDGE_REL:g} % in its 3 x 3 neighbourhood, its holes up to "
+    f"{EDGE_FILL_PX} px filled from their farthest neighbour), so real captures have them too.")
 
 
 def _interior_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> None:
@@ -235,7 +236,7 @@ def _interior_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) ->
     order = _interior_order(df, labels)
     if order:
         doc.para(f"**Ranking** (MSE against the HQ reference, away from its depth edges; best first): {order}.")
-    doc.para(f"The reference's pixels more than 1 px from its own depth edges: {100 * (1 - sh['mean']):.1f} % "
+    doc.para(f"The reference's pixels more than {EDGE_WIDTH_PX:g} px from its own depth edges: {100 * (1 - sh['mean']):.1f} % "
              f"[{100 * (1 - sh['hi']):.1f}, {100 * (1 - sh['lo']):.1f}] of them (mean over {len(share)} frames, 95 % "
              "bootstrap). The methods are ranked by these rows; the summaries above score all the reference's "
              "pixels. " + INTERIOR_NOTE, cls="note")
@@ -287,12 +288,13 @@ def _ranking_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) -> 
     header.append("against the truth, silhouettes / no reference")
     rows = []
     for metric in first:
-        for i, (a, b, _) in enumerate(first[metric]["pairs"]):
+        by_pair = {st: {(a, b): d for a, b, d in c[metric]["pairs"]} for st, c in checks.items()}
+        for a, b, _ in first[metric]["pairs"]:
             row = [f"{labels[a]} − {labels[b]}, {RANKING_METRICS[metric]}"]
-            for c in checks.values():
-                d = c[metric]["pairs"][i][2]
-                row += [cell(d["hq"]), cell(d["truth"]), agree(d)]
-            row.append(cell(checks["all"][metric]["pairs"][i][2].get(NOREF)) if "all" in checks else "–")
+            for st in checks:
+                d = by_pair[st].get((a, b))
+                row += ["–", "–", ""] if d is None else [cell(d["hq"]), cell(d["truth"]), agree(d)]
+            row.append(cell(by_pair.get("all", {}).get((a, b), {}).get(NOREF)))
             rows.append(row)
     doc.table(header, rows)
     doc.para(f"Mean over the frames with truth of the per-frame difference, with its 95 % paired bootstrap interval "

@@ -78,10 +78,13 @@ from align.warp import CropMotion
 
 #: grey images for the flow are the HQ colour images reduced by this factor
 DEFAULT_FLOW_SCALE = 0.25
-#: DIS's finest pyramid level on them (:class:`ColorFlow`'s ``finest``): ultrafast's own 2 on the half-size image
-#: of session 8 computed the flow at 1/8 of the colour image as 1 does on the quarter-size one, which costs less
-#: around it (the pyramid, the settling: session 9)
-FLOW_FINEST = 1
+#: DIS's finest pyramid level on them (:class:`ColorFlow`'s ``finest``): 0, the quarter-size image itself (session
+#: 13; sessions 9-12 stopped at level 1, 1/8 of the colour image, where an arm a few flow pixels wide that moves half
+#: its width per frame gets a third to two thirds of its motion: the module docstring's "Thin fast limbs")
+FLOW_FINEST = 0
+#: ... with DIS's patches this many pixels apart (ultrafast's own 4 costs 2.9 ms a pair at level 0, 5 costs 2.0;
+#: 6 loses the arms again: session 13)
+FLOW_PATCH_STRIDE = 5
 #: a flow target whose depth differs from the point's by more than this is another surface (m)
 DEFAULT_MAX_JUMP_M = 0.08
 #: untrusted samples take the mean motion of trusted ones of their own surface within this many depth pixels
@@ -146,17 +149,23 @@ def settle_flow(flow: np.ndarray, grey_o: np.ndarray, grey_x: np.ndarray, *, max
 
 
 class ColorFlow:
-    """Dense optical flow between two grey images (OpenCV DIS at ``preset`` with its finest pyramid level ``finest``
-    and ``refinement`` variational refinement iterations, ``None``: the preset's; one per thread). ``preset``
-    ``None``: the module's flow, ultrafast at ``FLOW_FINEST``."""
+    """Dense optical flow between two grey images (OpenCV DIS at ``preset`` with its finest pyramid level ``finest``,
+    its patches ``patch_stride`` pixels apart and ``refinement`` variational refinement iterations, ``None``: the
+    preset's; one per thread). ``preset`` ``None``: the module's flow, ultrafast at ``FLOW_FINEST`` with patches
+    ``FLOW_PATCH_STRIDE`` apart."""
 
-    def __init__(self, preset: int | None = None, *, finest: int | None = None, refinement: int | None = None) -> None:
+    def __init__(self, preset: int | None = None, *, finest: int | None = None, refinement: int | None = None,
+                 patch_stride: int | None = None) -> None:
         import threading
 
         self._local = threading.local()
         self.preset = cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST if preset is None else int(preset)
         finest = FLOW_FINEST if finest is None and preset is None else finest
+        patch_stride = FLOW_PATCH_STRIDE if patch_stride is None and preset is None else patch_stride
         self.finest = None if finest is None else int(finest)
+        self.patch_stride = None if patch_stride is None else int(patch_stride)
+        if self.patch_stride is not None and self.patch_stride < 1:
+            raise WarpInputError(f"optical flow patch stride must be a positive number of pixels, got {patch_stride!r}")
         self.refinement = None if refinement is None else int(refinement)
 
     def __call__(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -166,6 +175,8 @@ class ColorFlow:
             dis = self._local.dis = cv2.DISOpticalFlow_create(self.preset)
             if self.finest is not None:
                 dis.setFinestScale(self.finest)
+            if self.patch_stride is not None:
+                dis.setPatchStride(self.patch_stride)
             if self.refinement is not None:
                 dis.setVariationalRefinementIterations(self.refinement)
         if a.shape != b.shape:

@@ -13,8 +13,9 @@ Over one frame period every point moves at constant velocity (first order in tim
 where ``P_x`` is the same point in frame ``x``. :class:`SceneFlow` finds ``P_x - P`` per sample:
 
 1. each depth sample of ``o`` is projected into its own HQ colour image (``T_color_depth``);
-2. the dense optical flow from ``o``'s colour image to ``x``'s (OpenCV's DIS, ultrafast preset at its finest
-   level ``FLOW_FINEST``, on grey images reduced to ``flow_scale``) carries it to its colour position in ``x``; the same
+2. the dense optical flow from ``o``'s colour image to ``x``'s (OpenCV's DIS, ultrafast preset down to pyramid
+   level ``FLOW_FINEST``, the image itself, with patches ``FLOW_PATCH_STRIDE`` apart, on grey images reduced to
+   ``flow_scale``) carries it to its colour position in ``x``; the same
    displacement, scaled by the focal-length ratio, gives its depth pixel ``q`` in ``x`` (the
    colour-to-depth parallax changes with the point's depth change only, millimetres);
 3. ``P_x`` is ``x``'s sample at ``q``, unprojected. It is trusted when its depth is within
@@ -43,6 +44,17 @@ back). Such a pair shows itself: its moving samples land on their own surface le
 them at the best gain, against 0.77-0.87 elsewhere). Below ``FALLBACK_LANDED`` the pair's flow is found
 again at DIS's medium preset without its variational refinement (14 ms instead of 2.2 ms; session 8: 3 of 30
 pairs on seeds 1-3; now 1 of 30 consecutive pairs of seed 1), decided right after the gain vote (the failed flow's step 3, fill and expansion are not computed).
+
+**Thin fast limbs** (session 13). DIS's coarsest patches straddle an arm a few flow pixels wide, and the
+still background pulls them down; down to level 1 (1/8 of the colour image, sessions 9-12) nothing finer
+puts the arm's motion back. An arm swinging 20-25 LQ pixels per frame (seed 12's pair 4: moved 5 px in the
+7 ms, carried 1-3.5 px; 82 % of the samples on the worst pixels untrusted, i.e. filled with the slower upper
+arm's motion) then leaves a sliver behind it where the reference keeps the arm and the truth sees the
+background: 291 px (0.8 % of the ROI) carried 90 % of that pair's error (18.9 mm MAE). The same slivers
+lie where the plain warp errs too (it moves nothing), which hid that the flow moved the arm too little. A bar 12 px
+wide moving 5 px per frame gets 0.44 of its motion at level 1, 0.98 at level 0 (the tests). Since session 12
+made the simulated ToF HQ integrate its footprint these slivers are no longer hidden by the eroded
+silhouettes of the point-sampled HQ, and they put seeds 9, 12 and 16 over 2 mm from synchronous frames.
 
 A trusted sample whose flow is under ``STILL_PX`` and whose depth changes by under ``STILL_DZ_M``
 stands still: motion 0 (moved by ``frac`` of under half a pixel the warp does not change; its depth
@@ -92,7 +104,8 @@ DEFAULT_FILL_PX = 16
 #: factors tried on the optical flow (:class:`SceneFlow`'s ``gains``): DIS at its ultrafast preset finds
 #: 0.5-0.8 of the true image motion of moving people (measured against the simulator's, session 8); of session 9's
 #: six (1.0-1.7) these three were chosen on 147 of the 169 pairs that kept the fast flow; alone they land no
-#: worse (session 10)
+#: worse (session 10). With the flow at level 0 (session 13) the vote takes 1.1 on 171 of 180 pairs (seeds 1-18);
+#: adding 1.0 is worse, +0.08 mm [+0.04, +0.13] pooled over seeds 1-18
 DEFAULT_GAINS = (1.1, 1.2, 1.35)
 #: a pair whose moving samples land on their own surface less often than this share (at the best gain) gets
 #: the flow again at DIS's ``FALLBACK_PRESET``

@@ -43,7 +43,9 @@ find a third of the motion or less (seed 5's HQ frame 8: endpoint error 8.3 px o
 back). Such a pair shows itself: its moving samples land on their own surface less often (0.60-0.73 of
 them at the best gain, against 0.77-0.87 elsewhere). Below ``FALLBACK_LANDED`` the pair's flow is found
 again at DIS's medium preset without its variational refinement (14 ms instead of 2.2 ms; session 8: 3 of 30
-pairs on seeds 1-3; now 1 of 30 consecutive pairs of seed 1), decided right after the gain vote (the failed flow's step 3, fill and expansion are not computed).
+pairs on seeds 1-3; session 13, behind the level-0 flow: 3 of 180 pairs of seeds 1-18, 5.0 ms against the
+primary flow's 2.0 ms), decided right after the gain vote (the failed flow's step 3, fill and expansion are not
+computed).
 
 **Thin fast limbs** (session 13). DIS's coarsest patches straddle an arm a few flow pixels wide, and the
 still background pulls them down; down to level 1 (1/8 of the colour image, sessions 9-12) nothing finer
@@ -73,12 +75,15 @@ own depth change along their flow. The motion is written rotated into the LQ cam
 source crop (:class:`align.warp.CropMotion`), as the warp adds it. The scene-flow reference needs no plain
 warp of the pair's frame (:class:`align.motion.MotionReference`).
 
-Where it stands (``perf/reference_motion.py SESSION --frames 10``; clean people sessions 7 ms out of phase,
-scale 1, strict edges, MAE against the truth over the ROI): seeds 1-18 land 2.5-4.0 mm, each within 2 mm of the
-same seed's synchronous frames (2.0-2.5 mm; the plain warp 15-33 mm), masking nothing. CPU throughput
-(``--frames 2 --speed-frames 30``) 0.56-0.58 of the plain warp on session 10's machine (0.46 on session 9's,
-where the flow work cost twice as much). Every setting was chosen on a few seeds and checked on held-out ones;
-the measurements, the settings tried and dropped, and the per-pair costs: ``docs/motion_flow.md``.
+Where it stands (session 13; clean people sessions 7 ms out of phase, 2 s, scale 1, 10 pairs per session, MAE
+against the truth over the ROI, session 10's scorer on ``strict`` edges and align's own references under the
+default ``footprint-fg``): every one of seeds 1-36 lands within 2 mm of the same seed's synchronous frames, under
+both (strict: gaps 0.10-1.40 mm on seeds 1-18 where the setting was chosen, 0.27-1.31 on seeds 25-36 simulated
+after it; footprint-fg: 0.13-1.80 and 0.28-1.94); the plain warp reads 15-46 mm, synchronous frames 1.9-2.5 mm.
+The flow masks nothing: net ROI reference pixels lost against the plain warp -0.1-1.5 %. CPU throughput 0.53 of
+the plain warp (0.59 with session 12's coarser flow, the same run; seed 1, 30 consecutive pairs). Every setting
+was chosen on a few seeds and checked on held-out ones; the measurements, the settings tried and dropped, and the
+per-pair costs: ``docs/motion_flow.md``.
 """
 from __future__ import annotations
 

@@ -19,6 +19,16 @@ def scene_depth(K: Intrinsics, *, base: float = 1.2, seed: int = 0) -> np.ndarra
     return z.astype(np.float32)
 
 
+def box_scene(i: int, *, step_m: float, K: Intrinsics = K_SMALL) -> tuple[np.ndarray, np.ndarray]:
+    """Frame ``i`` of a near box moving 2 px per frame in front of :func:`scene_depth`'s wall at 1.5 m:
+    ``(truth (H, W) float32 metres, box (H, W) bool)``, the box ``step_m`` nearer than the wall."""
+    t = scene_depth(K, base=1.5)
+    box = np.zeros(t.shape, bool)
+    box[18:42, 22 + 2 * i:52 + 2 * i] = True
+    t[box] -= np.float32(step_m)
+    return t, box
+
+
 def make_dataset(root: Path, *, name: str = "synth", sequence: str | None = None, frames: int = 3,
                  K: Intrinsics = K_SMALL, truth: bool = True, roi: bool = True, color: bool = True,
                  lq_noise: float = 0.004, hq_noise: float = 0.001, empty_reference: bool = False,

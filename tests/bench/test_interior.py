@@ -11,7 +11,7 @@ from bench.masks import EDGE_FILL_PX, EDGE_REL, EDGE_WIDTH_PX, depth_edge_mask, 
 from bench.runner import run_benchmark
 from bench.summary import edge_share, ranking_check
 from tests.bench.conftest import SMALL_CONFIG
-from tests.bench.helpers import K_SMALL, Shift, Smooth, scene_depth
+from tests.bench.helpers import K_SMALL, Shift, Smooth, box_scene
 
 
 def _edges_by_loop(ref, *, width=EDGE_WIDTH_PX, rel=EDGE_REL, fill=EDGE_FILL_PX):
@@ -72,10 +72,7 @@ def _mixing_dataset(root):
     meta = {"name": "mix", "lq_intrinsics": K_SMALL.to_dict(), "time_shift_us": 0, "T_lq_hq": np.eye(4).tolist()}
     with AlignedDatasetWriter(root, meta) as w:
         for i in range(5):
-            t = scene_depth(K_SMALL, base=1.5)
-            box = np.zeros(t.shape, bool)
-            box[18:42, 22 + 2 * i:52 + 2 * i] = True
-            t[box] -= np.float32(0.4)
+            t, box = box_scene(i, step_m=0.4)
             ring = uniform_filter(box.astype(float), 3) % 1 > 0
             ref = np.where(ring, uniform_filter(t.astype(np.float64), 3), t).astype(np.float32)
             lq = (t + rng.normal(0, 0.0003, t.shape)).astype(np.float32)

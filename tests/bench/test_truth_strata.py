@@ -11,7 +11,7 @@ from bench.masks import truth_strata
 from bench.summary import decided_wrongly, noref_share, ranking_check
 from bench.runner import run_benchmark
 from tests.bench.conftest import SMALL_CONFIG
-from tests.bench.helpers import K_SMALL, Shift, scene_depth
+from tests.bench.helpers import K_SMALL, Shift, box_scene
 
 
 def _silhouette_dataset(root):
@@ -21,10 +21,7 @@ def _silhouette_dataset(root):
     meta = {"name": "sil", "lq_intrinsics": K_SMALL.to_dict(), "time_shift_us": 0, "T_lq_hq": np.eye(4).tolist()}
     with AlignedDatasetWriter(root, meta) as w:
         for i in range(4):
-            t = scene_depth(K_SMALL, base=1.5)
-            box = np.zeros(t.shape, bool)
-            box[18:42, 22 + 2 * i:52 + 2 * i] = True
-            t[box] -= np.float32(0.5)
+            t, box = box_scene(i, step_m=0.5)
             grown = np.zeros(t.shape, bool)
             grown[16:44, 20 + 2 * i:54 + 2 * i] = True
             band = grown & ~np.pad(box[2:-2, 2:-2], 2)

@@ -201,13 +201,9 @@ def noref_share(df: pd.DataFrame) -> pd.Series:
     >>> noref_share(df).tolist()
     [0.25]
     """
-    rows = df[df["reference"].isin(["truth", NOREF]) & df["bin_lo_m"].isna() & (df["metric"] == "n_reference")
-              & (df["method"] != HQ_SENSOR)]
-    if rows.empty:
+    w = _reference_counts(df, ("truth", NOREF))
+    if w is None:
         return pd.Series(dtype=np.float64)
-    first = sorted(rows["method_key"].unique())[0]
-    v = rows[rows["method_key"] == first].set_index(["dataset_checksum", "frame", "reference"])["value"]
-    w = v[~v.index.duplicated()].unstack("reference").reindex(columns=["truth", NOREF])
     with np.errstate(invalid="ignore", divide="ignore"):
         return (w[NOREF] / (w["truth"] + w[NOREF])).sort_index()
 
@@ -223,14 +219,24 @@ def edge_share(df: pd.DataFrame) -> pd.Series:
     >>> edge_share(df).tolist()
     [0.25]
     """
-    rows = df[df["reference"].isin(["hq", "hq_interior"]) & df["bin_lo_m"].isna() & (df["metric"] == "n_reference")]
-    if rows.empty:
+    w = _reference_counts(df, ("hq", "hq_interior"))
+    if w is None:
         return pd.Series(dtype=np.float64)
-    first = sorted(rows["method_key"].unique())[0]
-    v = rows[rows["method_key"] == first].set_index(["dataset_checksum", "frame", "reference"])["value"]
-    w = v[~v.index.duplicated()].unstack("reference").reindex(columns=["hq", "hq_interior"])
     with np.errstate(invalid="ignore", divide="ignore"):
         return (1 - w["hq_interior"] / w["hq"]).sort_index()
+
+
+def _reference_counts(df: pd.DataFrame, references: tuple[str, ...]) -> pd.DataFrame | None:
+    """Per frame (index ``(dataset_checksum, frame)``), one column per name of ``references``: the frame's
+    ``n_reference`` there (the same for every method: the first method key's rows, not the HQ sensor's); ``None``
+    without such rows."""
+    rows = df[df["reference"].isin(references) & df["bin_lo_m"].isna() & (df["metric"] == "n_reference")
+              & (df["method"] != HQ_SENSOR)]
+    if rows.empty:
+        return None
+    first = sorted(rows["method_key"].unique())[0]
+    v = rows[rows["method_key"] == first].set_index(["dataset_checksum", "frame", "reference"])["value"]
+    return v[~v.index.duplicated()].unstack("reference").reindex(columns=list(references))
 
 
 def ranking_check(df: pd.DataFrame, *, stratum: str = "all", n_boot: int = 2000, seed: int = 0) -> dict:
@@ -248,6 +254,8 @@ def ranking_check(df: pd.DataFrame, *, stratum: str = "all", n_boot: int = 2000,
     ``"truth_interior"``; :func:`bench.masks.interior_strata`). Returns ``{metric: {"order": {scoring:
     [key, ...]}, "same": bool, "pairs": [(a, b, {scoring: (mean, lo, hi)})], "wrong": [(a, b)]}}``; empty
     without truth rows of that stratum."""
+    if stratum not in RANKING_STRATA:
+        raise ValueError(f"ranking stratum must be one of {', '.join(RANKING_STRATA)}, got {stratum!r}")
     hq_ref, truth_ref = RANKING_STRATA[stratum]
     keys = [k for k in method_labels(df[df["reference"] == truth_ref])
             if k in set(df.loc[df["reference"] == hq_ref, "method_key"])]

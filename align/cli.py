@@ -87,10 +87,10 @@ def _model_groups(p: argparse.ArgumentParser) -> None:
                         "between two HQ frames (default: the reference is carried to the LQ instant from both)")
     g.add_argument("--motion-min-dt-ms", type=float, default=1.0, metavar="MS",
                    help="pairs closer in time than this keep the plain warp (default: %(default)g)")
-    g.add_argument("--motion-model", choices=("edges", "flow"), default="edges",
-                   help="how the reference is carried: edges (crossing times of depth edges, align/motion.py) or flow "
-                        "(the HQ frame's points moved along the HQ colour images' optical flow, align/motion_flow.py: "
-                        "closer to the truth, about 2x the time) (default: %(default)s)")
+    g.add_argument("--motion-model", choices=("edges", "flow"), default="flow",
+                   help="how the reference is carried: flow (the HQ frame's points moved along the HQ colour images' "
+                        "optical flow, align/motion_flow.py) or edges (crossing times of depth edges, align/motion.py: "
+                        "half the time, further from the truth) (default: %(default)s)")
     g = p.add_argument_group("multi-view rigs")
     g.add_argument("--rig-refine", choices=("views", "always", "never"), default="views",
                    help="refine the pairwise feature fits of a multi-view rig jointly from every sensor's static depth "

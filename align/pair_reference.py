@@ -41,14 +41,14 @@ class ReferenceOptions:
     """How references are built: ``reference_edges`` (edge rule by name, :mod:`align.reference_edges`),
     ``edge_rel`` (relative depth step of an edge, for the warp and the rule), ``motion`` (carry to the
     LQ instant), ``motion_min_dt_ms`` (pairs closer in time keep the plain warp), ``motion_model``
-    (``"edges"``: :mod:`align.motion`; ``"flow"``: the HQ frame's points moved along the HQ colour
-    images' optical flow, :mod:`align.motion_flow`, where the HQ frames have colour)."""
+    (``"flow"``, the default since session 13: the HQ frame's points moved along the HQ colour images' optical
+    flow, :mod:`align.motion_flow`, where the HQ frames have colour; ``"edges"``: :mod:`align.motion`)."""
 
     reference_edges: str = "footprint-fg"
     edge_rel: float = 0.03
     motion: bool = True
     motion_min_dt_ms: float = 1.0
-    motion_model: str = "edges"
+    motion_model: str = "flow"
 
     @classmethod
     def from_meta(cls, meta: dict) -> "ReferenceOptions":
@@ -58,7 +58,8 @@ class ReferenceOptions:
         return cls(reference_edges=edges.get("rule", d.reference_edges), edge_rel=float(edges.get("edge_rel", d.edge_rel)),
                    motion=bool(motion.get("enabled", d.motion)),
                    motion_min_dt_ms=float(motion.get("min_dt_ms", d.motion_min_dt_ms)),
-                   motion_model=str(motion.get("motion_model", d.motion_model)))
+                   # written before the scene flow existed (session 8): the edges model, the only one then
+                   motion_model=str(motion.get("motion_model", "edges" if motion else d.motion_model)))
 
 
 @dataclass

@@ -88,8 +88,8 @@ class AlignOptions:
     0, marked unobservable in aligned.json and the report). attach_truth: simulated sessions.
     motion: carry the reference to the LQ frame's instant from the two HQ frames around it
     (:mod:`align.motion`) for pairs at least ``motion_min_dt_ms`` apart; closer pairs keep the plain
-    warp, bit for bit. motion_model: ``"edges"`` (:mod:`align.motion`) or ``"flow"`` (scene flow along
-    the HQ colour images' optical flow, :mod:`align.motion_flow`; edges where a frame has no colour).
+    warp, bit for bit. motion_model: ``"flow"`` (the default: scene flow along the HQ colour images' optical
+    flow, :mod:`align.motion_flow`; edges where a frame has no colour) or ``"edges"`` (:mod:`align.motion`).
     rig_refine: multi-view rigs only: refine the feature rig from the sensors' static depth
     (:mod:`align.rig_refine`): ``views`` (default) where the reference is a view (no HQ sensor: the
     views are fitted against another LQ view 1-1.5 m away, off by up to 118 mm on the simulator),
@@ -135,7 +135,7 @@ class AlignOptions:
     reference_edges: str = "footprint-fg"
     motion: bool = True
     motion_min_dt_ms: float = 1.0
-    motion_model: str = "edges"
+    motion_model: str = "flow"
     rig_refine: str = "views"
     view_sync: str = "unobservable"
 

@@ -16,8 +16,8 @@ SSDD-size corpus (51 sequences of 30 s) on a cluster. The folder is built aside 
 every sequence is done: a failure leaves nothing.
 
 The references of an ``lq-hq`` corpus are carried to the LQ instant with the ``flow`` motion model
-(:mod:`align.motion_flow`) unless ``motion_model`` says otherwise: they are what SSDD's eq. 32 trains against,
-and on moving surfaces the default ``edges`` step left them much further from the truth (one people sequence
+(:mod:`align.motion_flow`; align's default too since session 13) unless ``motion_model`` says otherwise: they are
+what SSDD's eq. 32 trains against, and on moving surfaces the ``edges`` step left them much further from the truth (one people sequence
 16 ms apart, reference - truth on moving pixels inside surfaces: +3.18 mm / 41.8 mm2 with ``edges``, +2.01 mm /
 14.7 mm2 with ``flow``; session 8's lead measurement, re-measured on corpora in docs/worklog, session 9).
 

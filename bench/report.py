@@ -226,14 +226,14 @@ def _interior_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) ->
     labels = method_labels(df[df["reference"].isin(refs)], include_hq_sensor=True)
     doc.heading("Away from the reference's depth edges (the ranking)")
     metrics = {k: v for k, v in SUMMARY_METRICS.items() if k in ("mse_mm2", "rmse_mm", "mae_mm", "plane_fit_rmse_mm")}
-    rows = []
+    rows, summaries = [], {}
     for ref in refs:
-        s = bootstrap_summary(frame_values(df, ref), n_boot=n_boot, seed=seed)
+        s = summaries[ref] = bootstrap_summary(frame_values(df, ref), n_boot=n_boot, seed=seed)
         against = "HQ reference" if ref == "hq_interior" else "truth"
         rows += [[f"{name}, against the {against}"] + [_cell(s, m, k, n_total=len(share)) for k in labels]
                  for m, name in metrics.items()]
     doc.table(["metric"] + list(labels.values()), rows)
-    order = _interior_order(df, labels)
+    order = _interior_order(summaries.get("hq_interior"), labels)
     if order:
         doc.para(f"**Ranking** (MSE against the HQ reference, away from its depth edges; best first): {order}.")
     doc.para(f"The reference's pixels more than {EDGE_WIDTH_PX:g} px from its own depth edges: {100 * (1 - sh['mean']):.1f} % "
@@ -242,10 +242,12 @@ def _interior_section(doc: _Doc, df: pd.DataFrame, *, n_boot: int, seed: int) ->
              "pixels. " + INTERIOR_NOTE, cls="note")
 
 
-def _interior_order(df: pd.DataFrame, labels: dict) -> str:
-    """The methods (not the HQ sensor) ordered by their mean MSE over frames against ``hq_interior``."""
-    wide = frame_values(df, "hq_interior")
-    means = {k: wide[("mse_mm2", k)].mean() for k in labels if ("mse_mm2", k) in wide.columns}   # no HQ sensor
+def _interior_order(summary: pd.DataFrame | None, labels: dict) -> str:
+    """The methods ordered by their mean MSE over frames in ``summary`` (:func:`bootstrap_summary` against
+    ``hq_interior``, which does not score the HQ sensor)."""
+    if summary is None:
+        return ""
+    means = {k: summary.loc[("mse_mm2", k), "mean"] for k in labels if ("mse_mm2", k) in summary.index}
     return " < ".join(labels[k] for k in sorted(means, key=lambda k: (np.nan_to_num(means[k], nan=np.inf), k)))
 
 

@@ -55,23 +55,26 @@ def _channel(k, h_fine, h_coarse, grain, patch, tint_k, p):
 
 
 @njit(cache=True, nogil=True)
-def shade_hits(t_hit, prim, uvs, normals, idx, triangles, rest, tri_mat, params, tint, background,
-               z_out, lum_albedo_out, lum_shaded_out, rgb_out):
+def shade_hits(t_hit, prim, uvs, normals, idx, triangles, rest, tri_mat, tri_part, params, tint, background,
+               z_out, lum_albedo_out, lum_shaded_out, rgb_out, part_out):
     """For cast result ``j`` (arrays of length M from Open3D), fill pixel ``idx[j]`` of
     ``z_out`` (N,) float32 metres (NaN = no hit), ``lum_albedo_out``/``lum_shaded_out`` (N,)
-    float32 and ``rgb_out`` (N, 3) float32 shaded colour in [0, 1]."""
+    float32, ``rgb_out`` (N, 3) float32 shaded colour in [0, 1] and ``part_out`` (N,) int32, the
+    scene part of the triangle hit (``tri_part``; -1 = no hit)."""
     one = np.float32(1.0)
     for j in range(t_hit.shape[0]):
         i = idx[j]
         t = t_hit[j]
         if not np.isfinite(t):
             z_out[i] = np.nan
+            part_out[i] = -1
             lum_albedo_out[i] = background
             lum_shaded_out[i] = background
             rgb_out[i, 0] = rgb_out[i, 1] = rgb_out[i, 2] = background
             continue
         z_out[i] = t
         tri = prim[j]
+        part_out[i] = tri_part[tri]
         u = uvs[j, 0]
         v = uvs[j, 1]
         w = one - u - v
@@ -133,8 +136,8 @@ def depth_counts(depth, unit):
 def footprint_reduce(footprint, amplitude_weighted, z_out, near_out, far_out):
     """Per pixel of ``footprint`` ``(H, W, S)`` float32 metres (NaN = the ray met nothing): the mean of the finite
     depths (weighted by ``1 / z**2`` with ``amplitude_weighted``), the nearest and the farthest, into the ``(H, W)``
-    float32 outputs (NaN where none is finite); :func:`capture.sim.noise.footprint_depth` with numpy is the
-    reference (``tests/capture/test_sim_footprint.py`` checks the two agree)."""
+    float32 outputs (NaN where none is finite): :func:`capture.sim.noise.footprint_depth`
+    (``tests/capture/test_sim_footprint.py`` checks it against a direct loop)."""
     H, W, S = footprint.shape
     for i in range(H):
         for j in range(W):

@@ -407,26 +407,14 @@ def footprint_depth(footprint: np.ndarray, *, mix: str) -> tuple[np.ndarray, np.
     phasor sum of the returns (``"coverage"``: their mean; ``"coverage-amplitude"``: weighted by the amplitude
     ``1 / z**2``; ``"uniform"``: the mean, unused) and the nearest and farthest depth (NaN where nothing returns).
 
+    Computed by the compiled kernel :func:`capture.sim.kernels.footprint_reduce`.
+
     >>> fp = np.array([[[1.0, 1.0, 1.0, 3.0]]], np.float32)  # a quarter of the footprint on a far surface
     >>> [round(float(v[0, 0]), 3) for v in footprint_depth(fp, mix="coverage")]
     [1.5, 1.0, 3.0]
     >>> round(float(footprint_depth(fp, mix="coverage-amplitude")[0][0, 0]), 3)  # 3 x 1 + 3 / 9, over 3 + 1 / 9
     1.071
     """
-    hit = np.isfinite(footprint)
-    weight = hit.astype(np.float32)
-    if mix == "coverage-amplitude":
-        with np.errstate(divide="ignore", invalid="ignore"):
-            weight = np.where(hit, 1.0 / np.square(footprint), 0.0).astype(np.float32)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = (np.where(hit, footprint, 0.0) * weight).sum(-1) / weight.sum(-1)
-        z_near = np.where(hit.any(-1), np.where(hit, footprint, np.inf).min(-1), np.nan)
-        z_far = np.where(hit.any(-1), np.where(hit, footprint, -np.inf).max(-1), np.nan)
-    return z.astype(np.float32), z_near.astype(np.float32), z_far.astype(np.float32)
-
-
-def _footprint_depth_compiled(footprint: np.ndarray, *, mix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`footprint_depth` by the compiled kernel :func:`capture.sim.kernels.footprint_reduce`."""
     H, W = footprint.shape[:2]
     z, near, far = (np.empty((H, W), np.float32) for _ in range(3))
     footprint_reduce(np.ascontiguousarray(footprint, np.float32), mix == "coverage-amplitude", z, near, far)
@@ -447,7 +435,7 @@ def _point_mix(zf, valid, u_flying, u_weight, *, noise: TofNoise, far: np.float3
 def _footprint_mix(zf, valid, footprint: np.ndarray, u_weight, *, noise: TofNoise):
     """The footprint model's flying pixels (every footprint whose depths span a jump) and their depth (module
     docstring; ``"uniform"`` weighs by ``u_weight``): ``(flying, z_near, z_far, depth)``, each ``(H, W)``."""
-    z_sum, z_near, z_far = _footprint_depth_compiled(footprint, mix=noise.flying_mix)
+    z_sum, z_near, z_far = footprint_depth(footprint, mix=noise.flying_mix)
     flying = valid & (z_far - z_near > noise.flying_jump_m)
     z = u_weight * z_near + (1 - u_weight) * z_far if noise.flying_mix == "uniform" else z_sum
     return flying, z_near, z_far, np.where(flying, z, zf)

@@ -85,7 +85,7 @@ class Hits:
     albedo_luminance: np.ndarray
     shaded_luminance: np.ndarray
     rgb: np.ndarray
-    part: np.ndarray | None = None
+    part: np.ndarray
 
 
 @dataclass
@@ -152,10 +152,9 @@ class Renderer:
         t1 = time.perf_counter()
         scene = self.scene
         shade_hits(ans["t_hit"], ans["primitive_ids"], ans["primitive_uvs"], self.hit_normals(ans, normals), idx,
-                   scene.triangles, scene.rest_vertices, scene.triangle_material, self._params, self._tint,
-                   np.float32(BACKGROUND_RGB), layer.z, layer.lum_albedo, layer.lum_shaded, layer.rgb)
-        hit = np.isfinite(ans["t_hit"])
-        layer.part[idx] = np.where(hit, scene.triangle_part[np.where(hit, ans["primitive_ids"], 0)], -1)
+                   scene.triangles, scene.rest_vertices, scene.triangle_material, scene.triangle_part, self._params,
+                   self._tint, np.float32(BACKGROUND_RGB), layer.z, layer.lum_albedo, layer.lum_shaded, layer.rgb,
+                   layer.part)
         self.stage_s["raycast"] += t1 - t0
         self.stage_s["shade"] += time.perf_counter() - t1
 

@@ -113,7 +113,7 @@ def _footprint(renderer: Renderer, cams: SensorCameras, t_s: float, hits: Hits, 
         return None
     n = cams.footprint.intrinsics.width // cams.depth.intrinsics.width
     still = renderer.still_depth(cams.depth)
-    if still is None or hits.part is None:
+    if still is None:
         return footprint_samples(renderer.cast_depth(cams.footprint, t_s), n)
     z = hits.z
     moving = ~((z == still) | (np.isnan(z) & np.isnan(still)))
